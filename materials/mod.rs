@@ -1,0 +1,179 @@
+//! The spectral BSDF library, shared by every integrator.
+//!
+//! Conventions (pbrt-v4's):
+//! - Directions are unit vectors in the local shading frame, normal along +z,
+//!   both `wo` and `wi` pointing away from the surface.
+//! - `eval` returns f(wo, wi) WITHOUT the cosine factor; integrators multiply
+//!   by |cos theta_i| themselves.
+//! - `sample` returns f, the pdf (solid angle) and the flags of the lobe it
+//!   chose; for a delta (specular) lobe `pdf` is the discrete probability of
+//!   that lobe and `f` is the delta's weight divided by |cos theta_i|, so
+//!   f |cos| / pdf is the throughput either way. `eval` and `pdf` return 0 for
+//!   delta lobes.
+//! - `TransportMode` says which quantity flows along the path: radiance
+//!   (camera paths) or importance (light paths). Refraction scales radiance by
+//!   1/eta^2 (Veach 1997 §5.2) in radiance mode only. Veach's shading-normal
+//!   correction (§5.3) is NOT applied here: it is geometric, so integrators
+//!   apply it where they call the BSDF in importance mode (src/path.rs).
+//! - Random numbers come in as arguments (`uc` picks a lobe, `u2` the
+//!   direction), never an RNG, so tests can drive them.
+
+mod diffuse;
+
+pub use diffuse::Diffuse;
+
+use crate::spectrum::{SampledSpectrum, SampledWavelengths};
+use glam::{Vec2, Vec3A};
+
+/// Which quantity a path carries (Veach 1997 §5.2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TransportMode {
+    /// Camera paths: radiance flows towards the camera.
+    Radiance,
+    /// Light paths: importance flows towards the light (the adjoint BSDF).
+    Importance,
+}
+
+impl TransportMode {
+    pub fn flip(self) -> Self {
+        match self {
+            TransportMode::Radiance => TransportMode::Importance,
+            TransportMode::Importance => TransportMode::Radiance,
+        }
+    }
+}
+
+/// What kind of lobe a BSDF has or a sample came from (bit set).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct BsdfFlags(pub u8);
+
+impl BsdfFlags {
+    pub const REFLECTION: Self = Self(1);
+    pub const TRANSMISSION: Self = Self(2);
+    pub const DIFFUSE: Self = Self(4);
+    pub const GLOSSY: Self = Self(8);
+    pub const SPECULAR: Self = Self(16);
+
+    pub const DIFFUSE_REFLECTION: Self = Self(1 | 4);
+    pub const GLOSSY_REFLECTION: Self = Self(1 | 8);
+    pub const GLOSSY_TRANSMISSION: Self = Self(2 | 8);
+    pub const SPECULAR_REFLECTION: Self = Self(1 | 16);
+    pub const SPECULAR_TRANSMISSION: Self = Self(2 | 16);
+
+    #[inline]
+    pub fn contains(self, o: Self) -> bool {
+        self.0 & o.0 == o.0
+    }
+    #[inline]
+    pub fn is_specular(self) -> bool {
+        self.0 & Self::SPECULAR.0 != 0
+    }
+    #[inline]
+    pub fn is_transmission(self) -> bool {
+        self.0 & Self::TRANSMISSION.0 != 0
+    }
+    #[inline]
+    pub fn is_reflection(self) -> bool {
+        self.0 & Self::REFLECTION.0 != 0
+    }
+    /// Has a lobe that a connection (NEE, BDPT) can evaluate.
+    #[inline]
+    pub fn is_non_specular(self) -> bool {
+        self.0 & (Self::DIFFUSE.0 | Self::GLOSSY.0) != 0
+    }
+}
+
+impl std::ops::BitOr for BsdfFlags {
+    type Output = Self;
+    fn bitor(self, o: Self) -> Self {
+        Self(self.0 | o.0)
+    }
+}
+
+/// A direction drawn by `Bsdf::sample`.
+#[derive(Clone, Copy, Debug)]
+pub struct BsdfSample {
+    pub wi: Vec3A,
+    pub f: SampledSpectrum,
+    /// Solid-angle density of wi (for specular lobes: the lobe's probability).
+    pub pdf: f32,
+    pub flags: BsdfFlags,
+    /// Relative IOR eta_t / eta_i across the boundary for transmission, 1 for
+    /// reflection (used to take 1/eta^2 out of roulette's throughput).
+    pub eta: f32,
+}
+
+impl BsdfSample {
+    #[inline]
+    pub fn is_specular(&self) -> bool {
+        self.flags.is_specular()
+    }
+}
+
+/// Every BSDF prism knows; matched (not dispatched) in the hot loop.
+#[derive(Clone, Debug)]
+pub enum Bsdf {
+    Diffuse(Diffuse),
+}
+
+macro_rules! dispatch {
+    ($self:ident, $b:ident => $e:expr) => {
+        match $self {
+            Bsdf::Diffuse($b) => $e,
+        }
+    };
+}
+
+impl Bsdf {
+    #[inline]
+    pub fn eval(&self, wo: Vec3A, wi: Vec3A, lambda: &SampledWavelengths, mode: TransportMode) -> SampledSpectrum {
+        dispatch!(self, b => b.eval(wo, wi, lambda, mode))
+    }
+
+    #[inline]
+    pub fn sample(
+        &self,
+        wo: Vec3A,
+        uc: f32,
+        u2: Vec2,
+        lambda: &SampledWavelengths,
+        mode: TransportMode,
+    ) -> Option<BsdfSample> {
+        dispatch!(self, b => b.sample(wo, uc, u2, lambda, mode))
+    }
+
+    #[inline]
+    pub fn pdf(&self, wo: Vec3A, wi: Vec3A, lambda: &SampledWavelengths, mode: TransportMode) -> f32 {
+        dispatch!(self, b => b.pdf(wo, wi, lambda, mode))
+    }
+
+    /// The union of the lobes' flags.
+    #[inline]
+    pub fn flags(&self) -> BsdfFlags {
+        dispatch!(self, b => b.flags())
+    }
+
+    /// Whether the BSDF's directions depend on wavelength (a dispersive IOR):
+    /// a path that meets it keeps only its hero wavelength (pbrt-v4
+    /// `TerminateSecondary`, done by the integrators when they hit it).
+    #[inline]
+    pub fn is_dispersive(&self) -> bool {
+        dispatch!(self, b => b.is_dispersive())
+    }
+}
+
+/// Cosine of a local direction with the normal.
+#[inline]
+pub fn cos_theta(w: Vec3A) -> f32 {
+    w.z
+}
+
+#[inline]
+pub fn abs_cos_theta(w: Vec3A) -> f32 {
+    w.z.abs()
+}
+
+#[inline]
+pub fn same_hemisphere(a: Vec3A, b: Vec3A) -> bool {
+    a.z * b.z > 0.0
+}

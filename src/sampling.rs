@@ -1,0 +1,218 @@
+//! Warps from the unit square, a discrete (alias) distribution, the MIS
+//! heuristics, and the per-sample random stream.
+
+use glam::{Vec2, Vec3A};
+use rand_xoshiro::rand_core::{Rng, SeedableRng};
+use rand_xoshiro::Xoshiro128PlusPlus;
+use std::f32::consts::{FRAC_1_PI, PI};
+
+/// The random stream of one sample. Every (seed, stream, index) triple gets an
+/// independent generator, so a pixel's samples (or a light path) draw the same
+/// numbers whatever thread runs them and in whatever order.
+pub struct Sampler {
+    rng: Xoshiro128PlusPlus,
+}
+
+impl Sampler {
+    pub fn new(seed: u64, stream: u64, index: u64) -> Self {
+        let key = mix64(seed ^ mix64(stream.wrapping_add(mix64(index ^ 0x9E37_79B9_7F4A_7C15))));
+        Self { rng: Xoshiro128PlusPlus::seed_from_u64(key) }
+    }
+
+    /// A uniform number in [0, 1).
+    #[inline]
+    pub fn get1d(&mut self) -> f32 {
+        // 24 high bits: exactly representable, never rounds up to 1.
+        (self.rng.next_u32() >> 8) as f32 * (1.0 / (1u32 << 24) as f32)
+    }
+
+    #[inline]
+    pub fn get2d(&mut self) -> Vec2 {
+        Vec2::new(self.get1d(), self.get1d())
+    }
+}
+
+/// SplitMix64 finaliser (Steele et al. 2014): a bijective 64-bit mix.
+#[inline]
+pub fn mix64(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// Cosine-weighted hemisphere around +z (Malley's method on Shirley-Chiu's
+/// concentric disk); pdf = cos(theta) / pi.
+#[inline]
+pub fn cosine_hemisphere(u: Vec2) -> Vec3A {
+    let d = concentric_disk(u);
+    let z = (1.0 - d.length_squared()).max(0.0).sqrt();
+    Vec3A::new(d.x, d.y, z)
+}
+
+#[inline]
+pub fn cosine_hemisphere_pdf(cos_theta: f32) -> f32 {
+    cos_theta.max(0.0) * FRAC_1_PI
+}
+
+/// Shirley & Chiu 1997 concentric map of the square to the unit disk.
+#[inline]
+pub fn concentric_disk(u: Vec2) -> Vec2 {
+    let o = 2.0 * u - Vec2::ONE;
+    if o == Vec2::ZERO {
+        return Vec2::ZERO;
+    }
+    let (r, theta) = if o.x.abs() > o.y.abs() {
+        (o.x, PI / 4.0 * (o.y / o.x))
+    } else {
+        (o.y, PI / 2.0 - PI / 4.0 * (o.x / o.y))
+    };
+    r * Vec2::new(theta.cos(), theta.sin())
+}
+
+/// Uniform direction on the unit sphere; pdf = 1 / (4 pi).
+#[inline]
+pub fn uniform_sphere(u: Vec2) -> Vec3A {
+    let z = 1.0 - 2.0 * u.x;
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let phi = 2.0 * PI * u.y;
+    Vec3A::new(r * phi.cos(), r * phi.sin(), z)
+}
+
+pub const UNIFORM_SPHERE_PDF: f32 = 1.0 / (4.0 * PI);
+
+/// Uniform barycentrics (b0, b1) on a triangle; Heitz 2019, "A Low-Distortion
+/// Map Between Triangle and Square".
+#[inline]
+pub fn uniform_triangle(u: Vec2) -> (f32, f32) {
+    let (b0, b1);
+    if u.x < u.y {
+        b0 = u.x / 2.0;
+        b1 = u.y - b0;
+    } else {
+        b1 = u.y / 2.0;
+        b0 = u.x - b1;
+    }
+    (b0, b1)
+}
+
+/// Veach's power heuristic with beta = 2 for two strategies with one sample each.
+#[inline]
+pub fn power_heuristic(pdf_a: f32, pdf_b: f32) -> f32 {
+    let (a, b) = (pdf_a * pdf_a, pdf_b * pdf_b);
+    if a.is_infinite() {
+        return 1.0;
+    }
+    if a + b == 0.0 {
+        0.0
+    } else {
+        a / (a + b)
+    }
+}
+
+/// Walker's alias method (Vose 1991): O(1) sampling of a discrete
+/// distribution given by non-negative weights.
+#[derive(Clone, Debug, Default)]
+pub struct AliasTable {
+    bins: Vec<AliasBin>,
+}
+
+#[derive(Clone, Copy, Debug, Default)]
+struct AliasBin {
+    q: f32,
+    pmf: f32,
+    alias: u32,
+}
+
+impl AliasTable {
+    /// Returns None when there are no weights or they sum to zero.
+    pub fn new(weights: &[f32]) -> Option<Self> {
+        let sum: f64 = weights.iter().map(|&w| w.max(0.0) as f64).sum();
+        if weights.is_empty() || sum <= 0.0 || !sum.is_finite() {
+            return None;
+        }
+        let n = weights.len();
+        let mut bins: Vec<AliasBin> = weights
+            .iter()
+            .map(|&w| AliasBin { q: 0.0, pmf: (w.max(0.0) as f64 / sum) as f32, alias: 0 })
+            .collect();
+        let mut p: Vec<f64> = weights.iter().map(|&w| w.max(0.0) as f64 / sum * n as f64).collect();
+        let (mut under, mut over): (Vec<usize>, Vec<usize>) = (0..n).partition(|&i| p[i] < 1.0);
+        while let (Some(&u), Some(&o)) = (under.last(), over.last()) {
+            under.pop();
+            bins[u].q = p[u] as f32;
+            bins[u].alias = o as u32;
+            p[o] -= 1.0 - p[u];
+            if p[o] < 1.0 {
+                over.pop();
+                under.push(o);
+            }
+        }
+        for i in under.into_iter().chain(over) {
+            bins[i].q = 1.0;
+            bins[i].alias = i as u32;
+        }
+        Some(Self { bins })
+    }
+
+    /// Draw an index; returns (index, pmf).
+    #[inline]
+    pub fn sample(&self, u: f32) -> (usize, f32) {
+        let n = self.bins.len();
+        let x = u * n as f32;
+        let i = (x as usize).min(n - 1);
+        let up = (x - i as f32).min(1.0);
+        let j = if up < self.bins[i].q { i } else { self.bins[i].alias as usize };
+        (j, self.bins[j].pmf)
+    }
+
+    #[inline]
+    pub fn pmf(&self, i: usize) -> f32 {
+        self.bins[i].pmf
+    }
+
+    pub fn len(&self) -> usize {
+        self.bins.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.bins.is_empty()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn alias_table_reproduces_weights() {
+        let w = [1.0, 0.0, 3.0, 6.0];
+        let t = AliasTable::new(&w).unwrap();
+        let n = 200_000;
+        let mut counts = [0usize; 4];
+        let mut s = Sampler::new(1, 2, 3);
+        for _ in 0..n {
+            let (i, pmf) = t.sample(s.get1d());
+            assert_eq!(pmf, t.pmf(i));
+            counts[i] += 1;
+        }
+        for i in 0..4 {
+            let p = w[i] / 10.0;
+            let sigma = (n as f32 * p * (1.0 - p)).sqrt().max(1.0);
+            assert!(((counts[i] as f32) - n as f32 * p).abs() < 5.0 * sigma, "{counts:?}");
+        }
+        assert!(AliasTable::new(&[0.0, 0.0]).is_none());
+    }
+
+    #[test]
+    fn warps_stay_in_their_domains() {
+        let mut s = Sampler::new(7, 0, 0);
+        for _ in 0..10_000 {
+            let u = s.get2d();
+            let c = cosine_hemisphere(u);
+            assert!(c.z >= 0.0 && (c.length() - 1.0).abs() < 1e-4);
+            assert!((uniform_sphere(u).length() - 1.0).abs() < 1e-4);
+            let (b0, b1) = uniform_triangle(u);
+            assert!(b0 >= 0.0 && b1 >= 0.0 && b0 + b1 <= 1.0 + 1e-6);
+        }
+    }
+}

@@ -1,0 +1,106 @@
+//! CIE 1931 2-degree colour matching functions (1 nm, 360-830 nm; data file
+//! `data/cie1931_2deg_cmf_1nm.csv`, CIE tables as carried in pbrt-v4) and the
+//! conversion of a hero-wavelength estimate to XYZ and linear sRGB (D65).
+
+use super::{SampledSpectrum, SampledWavelengths, Spectrum, N_DENSE};
+use glam::{Mat3, Vec3, Vec4};
+use std::sync::LazyLock;
+
+pub(super) const LAMBDA_MIN_I: i32 = 360;
+pub(super) const LAMBDA_MAX_I: i32 = 830;
+pub const LAMBDA_MIN: f32 = LAMBDA_MIN_I as f32;
+pub const LAMBDA_MAX: f32 = LAMBDA_MAX_I as f32;
+
+/// Integral of ybar over 360-830 nm (1 nm sums), the normaliser that maps a
+/// constant spectrum of value v to luminance Y = v.
+pub const CIE_Y_INTEGRAL: f32 = 106.856_895;
+
+/// xbar, ybar, zbar at each integer wavelength, interleaved.
+static CMF: LazyLock<Vec<[f32; 3]>> = LazyLock::new(|| {
+    let text = include_str!("data/cie1931_2deg_cmf_1nm.csv");
+    let rows: Vec<[f32; 3]> = text
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.starts_with("lambda"))
+        .map(|l| {
+            let v: Vec<f32> = l.split(',').map(|x| x.trim().parse().expect("CIE table")).collect();
+            [v[1], v[2], v[3]]
+        })
+        .collect();
+    assert_eq!(rows.len(), N_DENSE, "CIE table must cover 360..=830 nm at 1 nm");
+    rows
+});
+
+#[inline]
+fn cmf_at(lambda: f32) -> Vec3 {
+    let i = (lambda - LAMBDA_MIN).round();
+    if (0.0..N_DENSE as f32).contains(&i) {
+        Vec3::from_array(CMF[i as usize])
+    } else {
+        Vec3::ZERO
+    }
+}
+
+/// Monte Carlo estimate of XYZ from radiance at the sampled wavelengths:
+/// the average over lanes of cmf(l_i) L_i / p(l_i), divided by the integral of
+/// ybar; lanes with pdf 0 (terminated secondaries) contribute nothing.
+#[inline]
+pub fn to_xyz(l: SampledSpectrum, lambda: &SampledWavelengths) -> Vec3 {
+    let w = l.safe_div(SampledSpectrum(lambda.pdf)).0 / (4.0 * CIE_Y_INTEGRAL);
+    let lam = lambda.lambda.to_array();
+    let (x, y, z) = (cmf_at(lam[0]), cmf_at(lam[1]), cmf_at(lam[2]));
+    let zz = cmf_at(lam[3]);
+    let xs = Vec4::new(x.x, y.x, z.x, zz.x).dot(w);
+    let ys = Vec4::new(x.y, y.y, z.y, zz.y).dot(w);
+    let zs = Vec4::new(x.z, y.z, z.z, zz.z).dot(w);
+    Vec3::new(xs, ys, zs)
+}
+
+/// XYZ to linear sRGB (D65 white), the standard matrix.
+pub fn xyz_to_linear_srgb(xyz: Vec3) -> Vec3 {
+    const M: Mat3 = Mat3::from_cols_array(&[
+        3.240_454_2, -0.969_266, 0.055_643_4, //
+        -1.537_138_5, 1.876_010_8, -0.204_025_9, //
+        -0.498_531_4, 0.041_556, 1.057_225_2,
+    ]);
+    M * xyz
+}
+
+/// Linear sRGB of a spectral estimate.
+#[inline]
+pub fn to_linear_srgb(l: SampledSpectrum, lambda: &SampledWavelengths) -> Vec3 {
+    xyz_to_linear_srgb(to_xyz(l, lambda))
+}
+
+/// Exact XYZ of a spectrum (1 nm sums), normalised so a constant v has Y = v.
+pub fn spectrum_to_xyz(s: &Spectrum) -> Vec3 {
+    let mut acc = Vec3::ZERO;
+    for (i, c) in CMF.iter().enumerate() {
+        acc += Vec3::from_array(*c) * s.eval(LAMBDA_MIN + i as f32);
+    }
+    acc / CIE_Y_INTEGRAL
+}
+
+pub(super) fn luminance(s: &Spectrum) -> f32 {
+    spectrum_to_xyz(s).y
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ybar_integral_matches_the_table() {
+        let s: f32 = CMF.iter().map(|c| c[1]).sum();
+        assert!((s - CIE_Y_INTEGRAL).abs() < 1e-3, "{s}");
+        assert!((Spectrum::Constant(2.5).luminance() - 2.5).abs() < 1e-4);
+    }
+
+    #[test]
+    fn equal_energy_is_white_point_e() {
+        let xyz = spectrum_to_xyz(&Spectrum::Constant(1.0));
+        let sum = xyz.x + xyz.y + xyz.z;
+        // Illuminant E has chromaticity (1/3, 1/3).
+        assert!((xyz.x / sum - 1.0 / 3.0).abs() < 1e-3);
+        assert!((xyz.y / sum - 1.0 / 3.0).abs() < 1e-3);
+    }
+}

@@ -1,0 +1,164 @@
+//! Spectral core: hero-wavelength sampling (Wilkie et al. 2014) with four
+//! wavelengths per path, spectra as scenes name them, and the conversion of a
+//! spectral estimate to CIE XYZ and linear sRGB.
+//!
+//! Every spectrum a scene names is turned, at load time, into either a
+//! constant or a dense table at 1 nm over [360, 830] nm, so that evaluating
+//! it in the hot loop is four loads (pbrt-v4's `DenselySampledSpectrum`).
+
+mod cie;
+mod named;
+mod rgb;
+mod sampled;
+
+pub use cie::{to_linear_srgb, to_xyz, xyz_to_linear_srgb, CIE_Y_INTEGRAL, LAMBDA_MAX, LAMBDA_MIN};
+pub use named::{
+    blackbody, cauchy, glass_ior, illuminant, metal_eta_k, sellmeier, GLASS_NAMES, ILLUMINANT_NAMES,
+    METAL_NAMES,
+};
+pub use rgb::{rgb_albedo, rgb_illuminant, RgbToSpectrumTable};
+pub use sampled::{SampledSpectrum, SampledWavelengths, N_LAMBDA};
+
+use std::sync::Arc;
+
+/// Number of 1 nm samples in [LAMBDA_MIN, LAMBDA_MAX].
+pub const N_DENSE: usize = (cie::LAMBDA_MAX_I - cie::LAMBDA_MIN_I + 1) as usize;
+
+/// A spectral distribution over wavelength (nm).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Spectrum {
+    /// The same value at every wavelength.
+    Constant(f32),
+    /// Values at every integer wavelength 360..=830 nm; looked up at the
+    /// nearest integer (as pbrt-v4 does).
+    Dense(Arc<[f32; N_DENSE]>),
+}
+
+impl Spectrum {
+    /// A piecewise-linear spectrum through (lambda_nm, value) points, sorted by
+    /// wavelength. Outside the given range the end values are held (clamped).
+    pub fn piecewise_linear(points: &[(f32, f32)]) -> Spectrum {
+        assert!(!points.is_empty(), "piecewise_linear needs at least one point");
+        let mut table = [0.0f32; N_DENSE];
+        for (i, v) in table.iter_mut().enumerate() {
+            *v = piecewise_linear_at(points, LAMBDA_MIN + i as f32);
+        }
+        Spectrum::from_dense(table)
+    }
+
+    /// A dense table, collapsed to `Constant` when every entry is equal (so
+    /// that `is_constant` is exact, which dispersion detection relies on).
+    pub fn from_dense(table: [f32; N_DENSE]) -> Spectrum {
+        if table.iter().all(|&v| v == table[0]) {
+            Spectrum::Constant(table[0])
+        } else {
+            Spectrum::Dense(Arc::new(table))
+        }
+    }
+
+    /// A dense table from a function of wavelength (nm).
+    pub fn from_fn(f: impl Fn(f32) -> f32) -> Spectrum {
+        let mut table = [0.0f32; N_DENSE];
+        for (i, v) in table.iter_mut().enumerate() {
+            *v = f(LAMBDA_MIN + i as f32);
+        }
+        Spectrum::from_dense(table)
+    }
+
+    /// Value at one wavelength (nm); 0 outside [360, 830] for dense spectra.
+    #[inline]
+    pub fn eval(&self, lambda: f32) -> f32 {
+        match self {
+            Spectrum::Constant(c) => *c,
+            Spectrum::Dense(t) => {
+                let i = (lambda - LAMBDA_MIN).round();
+                if (0.0..N_DENSE as f32).contains(&i) {
+                    t[i as usize]
+                } else {
+                    0.0
+                }
+            }
+        }
+    }
+
+    /// Values at the four sampled wavelengths.
+    #[inline]
+    pub fn sample(&self, lambda: &SampledWavelengths) -> SampledSpectrum {
+        match self {
+            Spectrum::Constant(c) => SampledSpectrum::splat(*c),
+            Spectrum::Dense(_) => {
+                let l = lambda.lambda.to_array();
+                SampledSpectrum::new(self.eval(l[0]), self.eval(l[1]), self.eval(l[2]), self.eval(l[3]))
+            }
+        }
+    }
+
+    pub fn is_constant(&self) -> bool {
+        matches!(self, Spectrum::Constant(_))
+    }
+
+    /// The largest value over the visible range.
+    pub fn max_value(&self) -> f32 {
+        match self {
+            Spectrum::Constant(c) => *c,
+            Spectrum::Dense(t) => t.iter().copied().fold(f32::NEG_INFINITY, f32::max),
+        }
+    }
+
+    /// The smallest value over the visible range.
+    pub fn min_value(&self) -> f32 {
+        match self {
+            Spectrum::Constant(c) => *c,
+            Spectrum::Dense(t) => t.iter().copied().fold(f32::INFINITY, f32::min),
+        }
+    }
+
+    /// Luminance Y of this spectrum as radiance: integral of s * ybar divided
+    /// by the integral of ybar, so a constant v gives v.
+    pub fn luminance(&self) -> f32 {
+        cie::luminance(self)
+    }
+
+    /// Pointwise product (e.g. an RGB illuminant's shape times D65).
+    pub fn scaled_by(&self, other: &Spectrum) -> Spectrum {
+        Spectrum::from_fn(|l| self.eval(l) * other.eval(l))
+    }
+
+    /// The spectrum times a constant.
+    pub fn scale(&self, s: f32) -> Spectrum {
+        match self {
+            Spectrum::Constant(c) => Spectrum::Constant(c * s),
+            Spectrum::Dense(_) => Spectrum::from_fn(|l| self.eval(l) * s),
+        }
+    }
+}
+
+fn piecewise_linear_at(points: &[(f32, f32)], lambda: f32) -> f32 {
+    let last = points.len() - 1;
+    if lambda <= points[0].0 {
+        return points[0].1;
+    }
+    if lambda >= points[last].0 {
+        return points[last].1;
+    }
+    let i = points.partition_point(|p| p.0 <= lambda) - 1;
+    let (l0, v0) = points[i];
+    let (l1, v1) = points[i + 1];
+    let t = (lambda - l0) / (l1 - l0);
+    v0 + t * (v1 - v0)
+}
+
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn piecewise_linear_interpolates_and_clamps() {
+        let s = Spectrum::piecewise_linear(&[(400.0, 1.0), (500.0, 3.0)]);
+        assert_eq!(s.eval(450.0), 2.0);
+        assert_eq!(s.eval(370.0), 1.0);
+        assert_eq!(s.eval(800.0), 3.0);
+        assert!(Spectrum::piecewise_linear(&[(400.0, 2.0)]).is_constant());
+    }
+}
