@@ -18,9 +18,18 @@
 //! - Random numbers come in as arguments (`uc` picks a lobe, `u2` the
 //!   direction), never an RNG, so tests can drive them.
 
+mod conductor;
+mod dielectric;
 mod diffuse;
+pub mod fresnel;
+pub mod microfacet;
+mod mirror;
 
+pub use conductor::Conductor;
+pub use dielectric::Dielectric;
 pub use diffuse::Diffuse;
+pub use microfacet::{roughness_to_alpha, TrowbridgeReitz};
+pub use mirror::Mirror;
 
 use crate::spectrum::{SampledSpectrum, SampledWavelengths};
 use glam::{Vec2, Vec3A};
@@ -108,18 +117,36 @@ impl BsdfSample {
     pub fn is_specular(&self) -> bool {
         self.flags.is_specular()
     }
+
+    /// A sample of a delta lobe `scale * delta(w - wi) / |cos theta_i|`
+    /// chosen with probability `pdf`; None at grazing wi or for an impossible
+    /// lobe, so no caller ever sees an infinite f or a zero pdf.
+    #[inline]
+    pub(crate) fn specular(wi: Vec3A, scale: SampledSpectrum, pdf: f32, flags: BsdfFlags, eta: f32) -> Option<Self> {
+        let cos = wi.z.abs();
+        if cos == 0.0 || !(pdf > 0.0) {
+            return None;
+        }
+        Some(Self { wi, f: scale / cos, pdf, flags, eta })
+    }
 }
 
 /// Every BSDF prism knows; matched (not dispatched) in the hot loop.
 #[derive(Clone, Debug)]
 pub enum Bsdf {
     Diffuse(Diffuse),
+    Conductor(Conductor),
+    Dielectric(Dielectric),
+    Mirror(Mirror),
 }
 
 macro_rules! dispatch {
     ($self:ident, $b:ident => $e:expr) => {
         match $self {
             Bsdf::Diffuse($b) => $e,
+            Bsdf::Conductor($b) => $e,
+            Bsdf::Dielectric($b) => $e,
+            Bsdf::Mirror($b) => $e,
         }
     };
 }

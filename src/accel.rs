@@ -1,8 +1,38 @@
-//! The BVH (obvhs) over all scene triangles: closest hit and occlusion.
-//! (Helper B replaces the brute-force placeholder with obvhs + a watertight test.)
+//! The BVH over all scene triangles: closest hit and occlusion.
+//!
+//! Structure: obvhs builds a PLOC BVH2 (Meister & Bittner 2018) and collapses it
+//! into a compressed 8-wide BVH (Ylitie, Karras & Laine 2017, "Efficient
+//! Incoherent Ray Traversal on GPUs Through Compressed Wide BVHs"). Traversal is
+//! obvhs's `traverse!` loop, but with our own node and primitive tests:
+//!
+//! - Primitive: the watertight ray/triangle test of Woop, Benthin & Wald 2013,
+//!   "Watertight Ray/Triangle Intersection" (JCGT 2(1)), with its
+//!   double-precision fallback. A ray through a shared edge or vertex hits at
+//!   least one of the triangles that share it, whatever the rounding.
+//! - Node: obvhs's own child-box test clamps t_near to an absolute 1e-4 (culling
+//!   every hit closer than that, i.e. most hits in a millimetre-scale scene) and
+//!   has no allowance for rounding, so a ray grazing a box face or edge (an
+//!   axis-aligned wall, a cube edge) can drop the box that holds the triangle
+//!   the primitive test would have hit. Ours widens every slab interval by a
+//!   bound on its rounding error, in the spirit of Ize 2013, "Robust BVH Ray
+//!   Traversal" (JCGT 2(2)); see `intersect_node`.
+//!
+//! Triangles are stored in BVH leaf order (obvhs's `primitive_indices`) so a
+//! leaf's triangles are contiguous in memory; `primitive_indices` maps a slot
+//! back to the input index that `TriangleHit::prim` reports. Degenerate
+//! triangles (zero area, non-finite vertices) are left out of the BVH: they can
+//! never be hit, and a renderer could not compute their normal anyway.
 
 use crate::geometry::Ray;
-use glam::Vec3A;
+// `UVec2` is named unqualified inside obvhs's `traverse!`.
+use glam::{DVec3, Mat3A, UVec2, Vec3A, Vec4};
+use obvhs::{
+    aabb::Aabb,
+    bvh2::reinsertion::ReinsertionOptimizer,
+    cwbvh::{bvh2_to_cwbvh::bvh2_to_cwbvh, node::CwBvhNode, CwBvh},
+    ploc::PlocBuilder,
+    BvhBuildParams,
+};
 
 /// A ray-triangle hit: distance, the triangle's index in the input order, and
 /// the barycentrics of its second and third vertices.
@@ -15,52 +45,419 @@ pub struct TriangleHit {
 }
 
 pub struct Accel {
+    bvh: CwBvh,
+    /// Triangles in BVH slot order: `tris[s]` is input triangle
+    /// `bvh.primitive_indices[s]`.
     tris: Vec<[Vec3A; 3]>,
+    /// Number of input triangles, degenerate ones included.
+    input_len: usize,
 }
+
+/// Build preset: PLOC with search radius 1 at the top levels and a little
+/// reinsertion. `fast_build` builds 1.3M triangles in well under a second on
+/// two cores (see benches/bvh.rs); slower presets buy a few % of traversal
+/// speed, which a research renderer rebuilding per scene load does not need.
+const BUILD_PARAMS: BvhBuildParams = BvhBuildParams::fast_build();
 
 impl Accel {
     pub fn build(tris: &[[Vec3A; 3]]) -> Self {
-        Self { tris: tris.to_vec() }
+        // `kept[k]` is the input index of the k-th non-degenerate triangle.
+        // obvhs gets positions 0..k, not input indices: with a single
+        // primitive its PLOC skips clustering and stores the index as a
+        // position (0.4.0 then panics in bvh2_to_cwbvh).
+        let mut aabbs = Vec::with_capacity(tris.len());
+        let mut kept = Vec::with_capacity(tris.len());
+        for (i, tri) in tris.iter().enumerate() {
+            if !is_degenerate(tri) {
+                aabbs.push(Aabb::new(
+                    tri[0].min(tri[1]).min(tri[2]),
+                    tri[0].max(tri[1]).max(tri[2]),
+                ));
+                kept.push(i as u32);
+            }
+        }
+        let mut bvh = if aabbs.is_empty() {
+            CwBvh::default()
+        } else {
+            // obvhs's `build_cwbvh` minus its debug-build validate(), which
+            // takes minutes on a million triangles in unoptimised test builds.
+            let p = BUILD_PARAMS;
+            let mut bvh2 = PlocBuilder::with_capacity(aabbs.len()).build(
+                p.ploc_search_distance,
+                &aabbs,
+                (0..aabbs.len() as u32).collect(),
+                p.sort_precision,
+                p.search_depth_threshold,
+            );
+            ReinsertionOptimizer::default().run(&mut bvh2, p.reinsertion_batch_ratio, None);
+            bvh2_to_cwbvh(&bvh2, p.max_prims_per_leaf.clamp(1, 3), true, false)
+        };
+        // From here on primitive_indices maps a slot to the input index.
+        for i in &mut bvh.primitive_indices {
+            *i = kept[*i as usize];
+        }
+        let sorted = bvh
+            .primitive_indices
+            .iter()
+            .map(|&i| tris[i as usize])
+            .collect();
+        Self {
+            bvh,
+            tris: sorted,
+            input_len: tris.len(),
+        }
+    }
+
+    /// Number of input triangles (degenerate ones included, though they are
+    /// never hit).
+    pub fn len(&self) -> usize {
+        self.input_len
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.input_len == 0
+    }
+
+    /// Scene bounds (min, max) over the non-degenerate triangles; a zero box
+    /// at the origin for an empty scene, so derived radii stay finite.
+    pub fn bounds(&self) -> (Vec3A, Vec3A) {
+        if self.tris.is_empty() {
+            (Vec3A::ZERO, Vec3A::ZERO)
+        } else {
+            (self.bvh.total_aabb.min, self.bvh.total_aabb.max)
+        }
     }
 
     /// Closest hit with t in (0, t_max).
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<TriangleHit> {
-        let mut best: Option<TriangleHit> = None;
-        let mut t_max = t_max;
-        for (i, tri) in self.tris.iter().enumerate() {
-            if let Some((t, b1, b2)) = intersect_triangle(ray, tri, t_max) {
-                t_max = t;
-                best = Some(TriangleHit { t, prim: i as u32, b1, b2 });
-            }
+        if self.tris.is_empty() {
+            return None;
         }
-        best
+        let pre = PreparedRay::new(ray)?;
+        let mut best_t = t_max;
+        let mut best: Option<(u32, f32, f32)> = None;
+        let mut state = self.bvh.new_traversal(ray.d);
+        let mut node: &CwBvhNode;
+        obvhs::traverse!(
+            self.bvh,
+            node,
+            state,
+            intersect_node(node, &pre, best_t, state.oct_inv4),
+            {
+                let slot = state.primitive_id;
+                if let Some((t, b1, b2)) = pre.intersect(&self.tris[slot as usize], best_t) {
+                    best_t = t;
+                    best = Some((slot, b1, b2));
+                }
+            }
+        );
+        best.map(|(slot, b1, b2)| TriangleHit {
+            t: best_t,
+            prim: self.bvh.primitive_indices[slot as usize],
+            b1,
+            b2,
+        })
     }
 
-    /// Whether anything blocks the ray in (0, t_max).
+    /// Whether anything blocks the ray in (0, t_max); stops at the first hit.
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
-        self.tris.iter().any(|tri| intersect_triangle(ray, tri, t_max).is_some())
+        if self.tris.is_empty() {
+            return false;
+        }
+        let Some(pre) = PreparedRay::new(ray) else {
+            return false;
+        };
+        let mut state = self.bvh.new_traversal(ray.d);
+        let mut node: &CwBvhNode;
+        let mut hit = false;
+        'traversal: {
+            obvhs::traverse!(
+                self.bvh,
+                node,
+                state,
+                intersect_node(node, &pre, t_max, state.oct_inv4),
+                {
+                    if pre
+                        .intersect(&self.tris[state.primitive_id as usize], t_max)
+                        .is_some()
+                    {
+                        hit = true;
+                        break 'traversal;
+                    }
+                }
+            );
+        }
+        hit
     }
 }
 
-fn intersect_triangle(ray: &Ray, tri: &[Vec3A; 3], t_max: f32) -> Option<(f32, f32, f32)> {
-    let e1 = tri[1] - tri[0];
-    let e2 = tri[2] - tri[0];
-    let p = ray.d.cross(e2);
-    let det = e1.dot(p);
-    if det == 0.0 {
+/// Whether a triangle can never be hit: a non-finite vertex, or zero area
+/// (its cross product is zero in double precision or underflows in single
+/// precision, where a renderer's normalize() would produce NaN).
+pub fn is_degenerate(tri: &[Vec3A; 3]) -> bool {
+    if !(tri[0].is_finite() && tri[1].is_finite() && tri[2].is_finite()) {
+        return true;
+    }
+    let n32 = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+    let l2 = n32.length_squared();
+    if !(l2.is_finite() && l2 > 0.0) {
+        return true;
+    }
+    let [a, b, c] = tri.map(|v| v.as_dvec3());
+    (b - a).cross(c - a) == DVec3::ZERO
+}
+
+/// One watertight ray/triangle test (Woop et al. 2013) without a BVH: the
+/// reference the BVH is tested against. Returns (t, b1, b2) for t in
+/// (0, t_max); never hits a degenerate triangle.
+pub fn intersect_triangle(ray: &Ray, tri: &[Vec3A; 3], t_max: f32) -> Option<(f32, f32, f32)> {
+    if is_degenerate(tri) {
         return None;
     }
-    let inv = 1.0 / det;
-    let s = ray.o - tri[0];
-    let b1 = s.dot(p) * inv;
-    if !(0.0..=1.0).contains(&b1) {
-        return None;
+    PreparedRay::new(ray)?.intersect(tri, t_max)
+}
+
+/// Per-ray constants of the watertight test (Woop et al. 2013, sec. 3) and of
+/// the node test.
+struct PreparedRay {
+    o: Vec3A,
+    /// Rows (as the matrix's rows; glam stores columns) map v - o to the
+    /// sheared, permuted space in which the ray is +z through the origin:
+    /// row 0 = e_kx - Sx e_kz, row 1 = e_ky - Sy e_kz, row 2 = Sz e_kz. Each
+    /// row has one zero entry, so the matrix product rounds exactly like the
+    /// paper's scalar A[kx] - Sx * A[kz] (x + 0 is exact).
+    shear: Mat3A,
+    /// 1/d, with zero components replaced by +-1e-20 so no 0 * inf = NaN can
+    /// silently drop a box (a NaN compare is false).
+    inv: Vec3A,
+    abs_inv: Vec3A,
+    neg: [bool; 3],
+}
+
+impl PreparedRay {
+    #[inline(always)]
+    fn new(ray: &Ray) -> Option<Self> {
+        let d = ray.d;
+        if !(ray.o.is_finite() && d.is_finite() && d.length_squared() > 0.0) {
+            return None;
+        }
+        let ad = d.abs();
+        let kz = if ad.x >= ad.y && ad.x >= ad.z {
+            0
+        } else if ad.y >= ad.z {
+            1
+        } else {
+            2
+        };
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        // Swapping keeps the winding of the projected triangle, so the sign of
+        // det stays meaningful (paper, sec. 3.1).
+        if d[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        let sz = 1.0 / d[kz];
+        let sx = d[kx] * sz;
+        let sy = d[ky] * sz;
+        let mut rows = [[0.0f32; 3]; 3];
+        rows[0][kx] = 1.0;
+        rows[0][kz] = -sx;
+        rows[1][ky] = 1.0;
+        rows[1][kz] = -sy;
+        rows[2][kz] = sz;
+        let shear = Mat3A::from_cols_array_2d(&rows).transpose();
+        let dc = d.abs().max(Vec3A::splat(1e-20)).copysign(d);
+        let inv = Vec3A::ONE / dc;
+        Some(Self {
+            o: ray.o,
+            shear,
+            inv,
+            abs_inv: inv.abs(),
+            neg: [inv.x < 0.0, inv.y < 0.0, inv.z < 0.0],
+        })
     }
-    let q = s.cross(e1);
-    let b2 = ray.d.dot(q) * inv;
-    if b2 < 0.0 || b1 + b2 > 1.0 {
-        return None;
+
+    /// Woop, Benthin & Wald 2013, fig. 2/3 (no backface culling). The three
+    /// 2D edge functions of the sheared triangle are computed from the same
+    /// transformed vertices by every triangle sharing an edge, and the
+    /// edge's function in the neighbour is the exact negation of ours
+    /// (a*b - c*d vs c*d - a*b), so a ray on the edge cannot miss both.
+    #[inline(always)]
+    fn intersect(&self, tri: &[Vec3A; 3], t_max: f32) -> Option<(f32, f32, f32)> {
+        let a = self.shear * (tri[0] - self.o);
+        let b = self.shear * (tri[1] - self.o);
+        let c = self.shear * (tri[2] - self.o);
+        let mut u = c.x * b.y - c.y * b.x;
+        let mut v = a.x * c.y - a.y * c.x;
+        let mut w = b.x * a.y - b.y * a.x;
+        // Exactly zero means the ray is (in f32) on an edge; the f32 products
+        // are exact in f64, so recomputing there gets the true sign (sec. 3.3).
+        if u == 0.0 || v == 0.0 || w == 0.0 {
+            let e = |p: Vec3A, q: Vec3A| (p.x as f64 * q.y as f64 - p.y as f64 * q.x as f64) as f32;
+            u = e(c, b);
+            v = e(a, c);
+            w = e(b, a);
+        }
+        if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+            return None;
+        }
+        let det = u + v + w;
+        if det == 0.0 {
+            return None;
+        }
+        let t_scaled = u * a.z + v * b.z + w * c.z;
+        // Range test on t = t_scaled / det before dividing (sec. 3.4), with
+        // the sign of det folded in; written so that NaN fails.
+        let (ts, ds) = if det < 0.0 {
+            (-t_scaled, -det)
+        } else {
+            (t_scaled, det)
+        };
+        if !(ts > 0.0 && ts < t_max * ds) {
+            return None;
+        }
+        let rcp = 1.0 / det;
+        let t = t_scaled * rcp;
+        // The division can round to 0 or up to t_max.
+        (t > 0.0 && t < t_max).then_some((t, v * rcp, w * rcp))
     }
-    let t = e2.dot(q) * inv;
-    (t > 0.0 && t < t_max).then_some((t, b1, b2))
+}
+
+/// 2^-20: slab t values below carry at most ~4 roundings of 2^-24 relative to
+/// (|p - o| + 256 e) / |d|; the slack is 16x that.
+const SLACK: f32 = 1.0 / (1u32 << 20) as f32;
+
+/// Ray vs the (up to) 8 quantized child boxes of a CWBVH node; returns the
+/// obvhs hit mask (inner children in the top byte, leaf triangles below).
+///
+/// The child plane at grid coordinate q is p + q e (p = node origin, e = a
+/// power of two per axis), so t = q (e / d) + (p - o) / d, as obvhs computes
+/// it. Each term is rounded; their absolute error is below
+/// 4 * 2^-24 (|p - o| + 255 e) |1/d|, and the quantization's own rounding of
+/// (child_min - p) below 2^-24 * 255 e. Subtracting `slack` from every near
+/// plane and adding it to every far plane makes the interval contain the
+/// exact one, so the test is conservative: a triangle whose exact box the ray
+/// touches is always tested (Ize 2013 argues the same for plain boxes).
+/// t_near is clamped at 0 (not obvhs's 1e-4), t_far at the current t_max.
+#[inline(always)]
+fn intersect_node(node: &CwBvhNode, r: &PreparedRay, t_max: f32, oct_inv4: u32) -> u32 {
+    let e = node.compute_extent();
+    let diff = Vec3A::from(node.p) - r.o;
+    let base = diff * r.inv;
+    let slack = (diff.abs() + e * 256.0) * r.abs_inv * SLACK;
+    let near_off = base - slack;
+    let far_off = base + slack;
+    let scale = e * r.inv;
+    let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
+
+    #[inline(always)]
+    fn quad(v: &[u8; 8], i: usize) -> Vec4 {
+        Vec4::new(
+            v[i * 4] as f32,
+            v[i * 4 + 1] as f32,
+            v[i * 4 + 2] as f32,
+            v[i * 4 + 3] as f32,
+        )
+    }
+    #[inline(always)]
+    fn slab(lo: &[u8; 8], hi: &[u8; 8], i: usize, neg: bool) -> (Vec4, Vec4) {
+        let (l, h) = (quad(lo, i), quad(hi, i));
+        if neg {
+            (h, l)
+        } else {
+            (l, h)
+        }
+    }
+
+    let mut hit_mask = 0u32;
+    for i in 0..2 {
+        let (nx, fx) = slab(&node.child_min_x, &node.child_max_x, i, r.neg[0]);
+        let (ny, fy) = slab(&node.child_min_y, &node.child_max_y, i, r.neg[1]);
+        let (nz, fz) = slab(&node.child_min_z, &node.child_max_z, i, r.neg[2]);
+        let t_near = (nx * scale.x + Vec4::splat(near_off.x))
+            .max(ny * scale.y + Vec4::splat(near_off.y))
+            .max(nz * scale.z + Vec4::splat(near_off.z))
+            .max(Vec4::ZERO);
+        let t_far = (fx * scale.x + Vec4::splat(far_off.x))
+            .min(fy * scale.y + Vec4::splat(far_off.y))
+            .min(fz * scale.z + Vec4::splat(far_off.z))
+            .min(Vec4::splat(t_max));
+        let mut mask = t_near.cmple(t_far).bitmask();
+        while mask != 0 {
+            let child = i * 4 + mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            let child_bits = ((child_bits8 >> (child * 8)) as u32) & 0xff;
+            let bit_index = ((bit_index8 >> (child * 8)) as u32) & 0xff;
+            hit_mask |= child_bits << bit_index;
+        }
+    }
+    hit_mask
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn quad() -> Vec<[Vec3A; 3]> {
+        let c = [
+            Vec3A::new(0.0, 0.0, 0.0),
+            Vec3A::new(1.0, 0.0, 0.0),
+            Vec3A::new(1.0, 1.0, 0.0),
+            Vec3A::new(0.0, 1.0, 0.0),
+        ];
+        vec![[c[0], c[1], c[2]], [c[0], c[2], c[3]]]
+    }
+
+    #[test]
+    fn empty_scene_misses() {
+        let a = Accel::build(&[]);
+        let r = Ray::new(Vec3A::ZERO, Vec3A::X);
+        assert!(a.is_empty() && a.len() == 0);
+        assert!(a.intersect(&r, f32::INFINITY).is_none());
+        assert!(!a.occluded(&r, f32::INFINITY));
+        assert_eq!(a.bounds(), (Vec3A::ZERO, Vec3A::ZERO));
+    }
+
+    #[test]
+    fn tiny_scenes_hit_with_input_index_and_barycentrics() {
+        for n in 1..=2 {
+            let tris = &quad()[..n];
+            let a = Accel::build(tris);
+            assert_eq!(a.len(), n);
+            let r = Ray::new(Vec3A::new(0.7, 0.2, 1.0), -Vec3A::Z);
+            let h = a.intersect(&r, f32::INFINITY).expect("hit");
+            assert_eq!(h.prim, 0);
+            assert!((h.t - 1.0).abs() < 1e-6);
+            let p = tris[0][0] * (1.0 - h.b1 - h.b2) + tris[0][1] * h.b1 + tris[0][2] * h.b2;
+            assert!((p - Vec3A::new(0.7, 0.2, 0.0)).length() < 1e-6, "{p}");
+            assert!(a.occluded(&r, 1.5) && !a.occluded(&r, 1.0));
+            assert!(a.intersect(&r, 1.0).is_none());
+        }
+    }
+
+    #[test]
+    fn diagonal_of_quad_is_hit() {
+        let a = Accel::build(&quad());
+        for k in 0..=64 {
+            let s = k as f32 / 64.0;
+            let r = Ray::new(Vec3A::new(s, s, 1.0), -Vec3A::Z);
+            assert!(a.intersect(&r, f32::INFINITY).is_some(), "s = {s}");
+            assert!(a.occluded(&r, f32::INFINITY), "s = {s}");
+        }
+    }
+
+    #[test]
+    fn degenerate_triangles_are_dropped() {
+        let p = Vec3A::new(1.0, 2.0, 3.0);
+        let tris = [
+            [p, p, p],
+            [Vec3A::ZERO, Vec3A::X, Vec3A::X * 2.0],
+            [Vec3A::ZERO, Vec3A::X, Vec3A::new(f32::NAN, 0.0, 0.0)],
+        ];
+        assert!(tris.iter().all(is_degenerate));
+        let a = Accel::build(&tris);
+        assert_eq!(a.len(), 3);
+        let r = Ray::new(Vec3A::new(0.5, 0.0, 1.0), -Vec3A::Z);
+        assert!(a.intersect(&r, f32::INFINITY).is_none());
+    }
 }

@@ -1,10 +1,23 @@
 //! prism: a spectral bidirectional path tracer for light-transport research.
-//! See ARCHITECTURE.md-style overview in README.md.
+//! The layout follows ARCHITECTURE.md: the shared core here, the BSDFs in
+//! ../materials and the estimators in ../integrators, mounted as modules so
+//! the renderer is one crate.
 
 pub mod accel;
+pub mod camera;
+pub mod film;
 pub mod geometry;
+pub mod light;
+pub mod path;
+pub mod render;
 pub mod sampling;
+pub mod scene;
+pub mod shapes;
 pub mod spectrum;
+pub mod stats;
 
 #[path = "../materials/mod.rs"]
 pub mod materials;
+
+#[path = "../integrators/mod.rs"]
+pub mod integrators;

@@ -1,1 +1,210 @@
-fn main() {}
+//! The `prism` command line.
+
+use anyhow::{bail, Context, Result};
+use clap::{Parser, Subcommand};
+use prism::film::{self, DroppedSamples, Film};
+use prism::integrators::{self, IntegratorOptions, INTEGRATORS};
+use prism::render::{render, RenderOptions};
+use prism::scene::load_scene;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(name = "prism", version, about = "A spectral bidirectional path tracer for light-transport research")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a scene to an EXR (linear sRGB), with an optional PNG preview and a JSON sidecar.
+    Render(RenderArgs),
+    /// List the registered integrators.
+    Integrators,
+    /// Regenerate the Jakob-Hanika RGB-to-spectrum coefficient table.
+    RgbTable {
+        /// Table resolution per axis.
+        #[arg(long, default_value_t = 32)]
+        res: usize,
+        #[arg(long)]
+        out: PathBuf,
+    },
+}
+
+#[derive(clap::Args)]
+struct RenderArgs {
+    /// Scene file (JSON).
+    scene: PathBuf,
+    /// Estimator (see `prism integrators`); default: the scene's, else `path`.
+    #[arg(long)]
+    integrator: Option<String>,
+    /// Samples per pixel (light tracing: light paths per pixel).
+    #[arg(long)]
+    spp: Option<u32>,
+    /// Output EXR.
+    #[arg(long)]
+    out: PathBuf,
+    /// Optional PNG preview (sRGB, clamped).
+    #[arg(long)]
+    png: Option<PathBuf>,
+    /// PNG exposure in stops.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    exposure: f32,
+    #[arg(long)]
+    width: Option<u32>,
+    #[arg(long)]
+    height: Option<u32>,
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Worker threads (0 = all cores).
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// Maximum scattering events (roulette ends most paths long before).
+    #[arg(long)]
+    max_depth: Option<u32>,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
+}
+
+/// The JSON sidecar written next to every EXR.
+#[derive(Serialize)]
+struct Sidecar {
+    scene: String,
+    integrator: String,
+    spp: u64,
+    seed: u64,
+    width: u32,
+    height: u32,
+    max_depth: u32,
+    threads: usize,
+    wall_seconds: f64,
+    samples_per_second: f64,
+    rays: u64,
+    mrays_per_second: f64,
+    dropped_samples: DroppedSamples,
+    prism_version: &'static str,
+    commit: &'static str,
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Render(args) => render_command(args),
+        Command::Integrators => {
+            for i in INTEGRATORS {
+                println!("{:<12} {}", i.name, i.description);
+            }
+            Ok(())
+        }
+        Command::RgbTable { res, out } => rgb_table(res, &out),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn rgb_table(res: usize, out: &Path) -> Result<()> {
+    let table = prism::spectrum::RgbToSpectrumTable::generate(res);
+    table.write(out).with_context(|| format!("cannot write {}", out.display()))
+}
+
+/// Fails early (before any rendering) if `path` cannot be written.
+fn check_writable(path: &Path) -> Result<()> {
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    if !dir.is_dir() {
+        bail!("cannot write {}: directory {} does not exist", path.display(), dir.display());
+    }
+    let probe = dir.join(format!(".prism-write-probe-{}", std::process::id()));
+    std::fs::write(&probe, b"").with_context(|| format!("cannot write {}: directory is not writable", path.display()))?;
+    let _ = std::fs::remove_file(probe);
+    if path.is_dir() {
+        bail!("cannot write {}: it is a directory", path.display());
+    }
+    Ok(())
+}
+
+fn render_command(a: RenderArgs) -> Result<()> {
+    let mut builder = load_scene(&a.scene)?;
+    let defaults = builder.defaults.clone();
+    let name = a.integrator.or(defaults.integrator).unwrap_or_else(|| "path".to_string());
+    let spp = a.spp.or(defaults.spp).unwrap_or(16);
+    if spp == 0 {
+        bail!("--spp must be at least 1");
+    }
+    let seed = a.seed.or(defaults.seed).unwrap_or(0);
+    let max_depth = a.max_depth.or(defaults.max_depth).unwrap_or(IntegratorOptions::default().max_depth);
+    let integrator = integrators::create(&name, &IntegratorOptions { max_depth }).map_err(anyhow::Error::msg)?;
+    if a.width.is_some() || a.height.is_some() {
+        let (w, h) = (a.width.unwrap_or(0), a.height.unwrap_or(0));
+        if w == 0 || h == 0 {
+            bail!("--width and --height must be given together and be at least 1");
+        }
+        builder.set_resolution(w, h);
+    }
+    if a.out.extension().and_then(|e| e.to_str()) != Some("exr") {
+        bail!("--out must name an .exr file, got {}", a.out.display());
+    }
+    check_writable(&a.out)?;
+    if let Some(png) = &a.png {
+        check_writable(png)?;
+    }
+    let scene = builder.build();
+    for w in integrator.unsamplable(&scene) {
+        eprintln!("warning: {w}");
+    }
+    let (w, h) = (scene.camera.width, scene.camera.height);
+    let mut film = Film::new(w, h);
+    let opts = RenderOptions { seed, threads: a.threads, progress: !a.quiet };
+    let stats = render(&scene, integrator.as_ref(), &opts, &mut film, 0..spp);
+    let image = film.image();
+    film::write_exr(&a.out, w, h, &image)?;
+    if let Some(png) = &a.png {
+        film::write_png(png, w, h, &image, a.exposure)?;
+    }
+    let secs = stats.wall.as_secs_f64();
+    let sidecar = Sidecar {
+        scene: a.scene.display().to_string(),
+        integrator: name,
+        spp: film.spp,
+        seed,
+        width: w,
+        height: h,
+        max_depth,
+        threads: rayon::current_num_threads().max(a.threads),
+        wall_seconds: secs,
+        samples_per_second: stats.samples as f64 / secs,
+        rays: stats.rays,
+        mrays_per_second: stats.rays as f64 / secs / 1e6,
+        dropped_samples: film.dropped,
+        prism_version: env!("CARGO_PKG_VERSION"),
+        commit: env!("PRISM_COMMIT"),
+    };
+    film::write_json(&a.out.with_extension("json"), &sidecar)?;
+    eprintln!(
+        "{}x{} {} spp in {:.2} s: {:.2} Msamples/s, {:.1} Mrays/s",
+        w,
+        h,
+        film.spp,
+        secs,
+        sidecar.samples_per_second / 1e6,
+        sidecar.mrays_per_second
+    );
+    if film.dropped.total() > 0 {
+        let d = film.dropped;
+        eprintln!(
+            "warning: dropped {} samples ({} NaN, {} infinite, {} negative); see the sidecar",
+            d.total(),
+            d.nan,
+            d.infinite,
+            d.negative
+        );
+    }
+    Ok(())
+}

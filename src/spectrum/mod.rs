@@ -17,6 +17,9 @@ pub use named::{
     METAL_NAMES,
 };
 pub use rgb::{rgb_albedo, rgb_illuminant, RgbToSpectrumTable};
+pub use cie::spectrum_to_xyz;
+pub use named::{cauchy_ior, planck, sellmeier_ior};
+pub use rgb::sigmoid_polynomial;
 pub use sampled::{SampledSpectrum, SampledWavelengths, N_LAMBDA};
 
 use std::sync::Arc;

@@ -1,0 +1,103 @@
+//! `light`: light tracing (particle tracing). Each sample traces one light
+//! subpath: a light chosen by power, an emitted ray, then an importance-mode
+//! random walk (src/path.rs); every vertex that a deterministic connection
+//! can reach (the light's own point, non-specular surfaces) is joined to the
+//! pinhole and its contribution beta f |cos| We / pdf is splatted into the
+//! pixel it projects to. In BDPT terms these are the strategies (s, t = 1),
+//! s >= 1, each with weight 1 (Veach 1997 §10.2, Arvo & Kirk 1990; pbrt-v4
+//! `LightPathIntegrator`).
+//!
+//! The driver calls `sample` once per (pixel, sample index); the pixel is
+//! only a stream id, the pixel estimate returned is zero and the image is
+//! made of splats, which the film divides by spp: `--spp N` traces
+//! N x width x height light paths (camera.rs explains the normalisation).
+//!
+//! What it cannot see: a pinhole cannot receive a delta direction, so
+//! surfaces seen through a smooth specular chain (a mirror, glass) and the
+//! environment seen directly stay black; `unsamplable` names them.
+//!
+//! | parameter | type | default | meaning                     |
+//! |-----------|------|---------|-----------------------------|
+//! | max_depth | int  | 1024    | maximum scattering events   |
+
+use super::{Integrator, IntegratorOptions};
+use crate::path::{connect_to_camera, light_subpath, specular_chains_to_point_lights};
+use crate::render::Workspace;
+use crate::sampling::Sampler;
+use crate::scene::Scene;
+use crate::spectrum::{SampledSpectrum, SampledWavelengths};
+use glam::{UVec2, Vec2};
+
+pub struct LightTracer {
+    max_depth: u32,
+}
+
+impl LightTracer {
+    pub fn new(o: &IntegratorOptions) -> Self {
+        Self { max_depth: o.max_depth }
+    }
+}
+
+impl Integrator for LightTracer {
+    fn sample(
+        &self,
+        scene: &Scene,
+        _pixel: UVec2,
+        sampler: &mut Sampler,
+        lambda: &mut SampledWavelengths,
+        ws: &mut Workspace,
+    ) -> SampledSpectrum {
+        let path = &mut ws.paths.light;
+        light_subpath(scene, sampler, lambda, self.max_depth, path);
+        for v in path.iter() {
+            if let Some((splat, _)) = connect_to_camera(scene, v, lambda) {
+                ws.splats.push(splat);
+            }
+        }
+        SampledSpectrum::ZERO
+    }
+
+    fn unsamplable(&self, scene: &Scene) -> Vec<String> {
+        let mut warnings = Vec::new();
+        let (specular, background) = seen_directly(scene);
+        if !specular.is_empty() {
+            warnings.push(format!(
+                "light tracing cannot see smooth specular surfaces through a pinhole: the material(s) {} seen directly by the camera, and everything seen through them, will be black (use path or bdpt)",
+                specular.join(", ")
+            ));
+        }
+        if background {
+            warnings.push(
+                "light tracing cannot see the environment directly through a pinhole: the background will be black (use path or bdpt)"
+                    .to_string(),
+            );
+        }
+        warnings.extend(specular_chains_to_point_lights(scene));
+        warnings
+    }
+}
+
+/// Traces a grid of camera rays (at most 64 x 64, through pixel centres) and
+/// returns the purely specular materials they hit first, and whether any ray
+/// escapes to an environment light.
+fn seen_directly(scene: &Scene) -> (Vec<String>, bool) {
+    let cam = &scene.camera;
+    let (nx, ny) = (cam.width.min(64), cam.height.min(64));
+    let mut specular: Vec<String> = Vec::new();
+    let mut background = false;
+    for j in 0..ny {
+        for i in 0..nx {
+            let raster = Vec2::new((i as f32 + 0.5) / nx as f32 * cam.width as f32, (j as f32 + 0.5) / ny as f32 * cam.height as f32);
+            match scene.intersect(&cam.generate_ray(raster)) {
+                None => background |= scene.environment().is_some(),
+                Some(si) => {
+                    let m = &scene.materials[si.material as usize];
+                    if !m.bsdf.flags().is_non_specular() && !specular.contains(&m.name) {
+                        specular.push(m.name.clone());
+                    }
+                }
+            }
+        }
+    }
+    (specular, background)
+}

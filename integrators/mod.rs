@@ -1,0 +1,160 @@
+//! The estimators: one file each, sharing the scene, BSDFs, lights and (for
+//! the bidirectional ones) the subpath machinery of src/path.rs. Adding one is
+//! adding a file and a line to `INTEGRATORS`.
+
+mod bdpt;
+mod light;
+mod path;
+mod simple_path;
+
+pub use bdpt::{mis_weight, Bdpt};
+
+use crate::render::Workspace;
+use crate::sampling::Sampler;
+use crate::scene::Scene;
+use crate::spectrum::{SampledSpectrum, SampledWavelengths};
+use glam::UVec2;
+
+/// One unbiased estimator of the pixel integral (box filter, CIE-weighted
+/// spectral radiance, see ARCHITECTURE.md).
+pub trait Integrator: Send + Sync {
+    /// One sample for `pixel`: returns the estimate of that pixel's value and
+    /// may add splats (to any pixel) to `ws.splats`. `lambda` may be changed
+    /// (secondary wavelengths terminated) by the sample.
+    fn sample(
+        &self,
+        scene: &Scene,
+        pixel: UVec2,
+        sampler: &mut Sampler,
+        lambda: &mut SampledWavelengths,
+        ws: &mut Workspace,
+    ) -> SampledSpectrum;
+
+    /// Path classes the scene contains that this estimator cannot sample, in
+    /// plain words (printed as warnings before rendering).
+    fn unsamplable(&self, _scene: &Scene) -> Vec<String> {
+        Vec::new()
+    }
+}
+
+/// Settings every integrator understands.
+#[derive(Clone, Debug)]
+pub struct IntegratorOptions {
+    /// Maximum number of scattering events; roulette usually ends paths first.
+    pub max_depth: u32,
+    /// How BDPT weights its strategies (the other estimators ignore it).
+    pub mis: MisHeuristic,
+}
+
+impl Default for IntegratorOptions {
+    fn default() -> Self {
+        Self { max_depth: 1024, mis: MisHeuristic::Power }
+    }
+}
+
+/// Multiple-importance-sampling heuristic for combining the strategies of a
+/// bidirectional estimator (Veach 1997 §9.2). All three give weights that sum
+/// to one over the strategies able to make a path, so all are unbiased.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MisHeuristic {
+    /// w_i = p_i^2 / sum_k p_k^2 (Veach's power heuristic, beta = 2).
+    #[default]
+    Power,
+    /// w_i = p_i / sum_k p_k (pbrt's choice).
+    Balance,
+    /// w_i = 1 / (number of strategies that can make the path): no
+    /// importance at all, the baseline that shows what MIS buys.
+    Uniform,
+}
+
+impl MisHeuristic {
+    pub const NAMES: &'static [&'static str] = &["power", "balance", "uniform"];
+
+    /// What a strategy of relative density r = p_k / p_s adds to the
+    /// denominator of strategy s's weight.
+    #[inline]
+    pub fn term(self, r: f32) -> f32 {
+        match self {
+            MisHeuristic::Power => r * r,
+            MisHeuristic::Balance => r,
+            MisHeuristic::Uniform => {
+                if r > 0.0 {
+                    1.0
+                } else {
+                    0.0
+                }
+            }
+        }
+    }
+}
+
+impl std::str::FromStr for MisHeuristic {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "power" => Ok(MisHeuristic::Power),
+            "balance" => Ok(MisHeuristic::Balance),
+            "uniform" => Ok(MisHeuristic::Uniform),
+            _ => Err(format!("unknown MIS heuristic \"{s}\" (valid: {})", Self::NAMES.join(", "))),
+        }
+    }
+}
+
+pub struct IntegratorInfo {
+    pub name: &'static str,
+    pub description: &'static str,
+    pub create: fn(&IntegratorOptions) -> Box<dyn Integrator>,
+}
+
+pub const INTEGRATORS: &[IntegratorInfo] = &[
+    IntegratorInfo {
+        name: "simple_path",
+        description: "path tracing with BSDF sampling only (no NEE, no MIS): the obviously correct baseline",
+        create: |o| Box::new(simple_path::SimplePath::new(o)),
+    },
+    IntegratorInfo {
+        name: "path",
+        description: "path tracing with next-event estimation and BSDF sampling combined by the power heuristic",
+        create: |o| Box::new(path::PathTracer::new(o)),
+    },
+    IntegratorInfo {
+        name: "light",
+        description: "light tracing (particle tracing): light paths connected to the pinhole and splatted",
+        create: |o| Box::new(light::LightTracer::new(o)),
+    },
+    IntegratorInfo {
+        name: "bdpt",
+        description: "bidirectional path tracing: every (s, t) connection strategy, combined by MIS (--mis)",
+        create: |o| Box::new(bdpt::Bdpt::new(o)),
+    },
+];
+
+/// The integrator called `name`, or an error that lists the valid names.
+pub fn create(name: &str, opts: &IntegratorOptions) -> Result<Box<dyn Integrator>, String> {
+    INTEGRATORS.iter().find(|i| i.name == name).map(|i| (i.create)(opts)).ok_or_else(|| {
+        let names: Vec<&str> = INTEGRATORS.iter().map(|i| i.name).collect();
+        format!("unknown integrator \"{name}\" (valid: {})", names.join(", "))
+    })
+}
+
+/// Russian roulette on throughput (pbrt-v4 PathIntegrator): after
+/// `min_depth` bounces, continue with probability min(1, max beta') where
+/// beta' is the throughput with refraction's 1/eta^2 taken out; survivors
+/// are reweighted by 1/(continuation probability). Returns false to stop.
+#[inline]
+pub(crate) fn russian_roulette(beta: &mut SampledSpectrum, eta_scale: f32, depth: u32, u: f32) -> bool {
+    const MIN_DEPTH: u32 = 3;
+    if depth < MIN_DEPTH {
+        return true;
+    }
+    let m = (*beta * eta_scale).max_component();
+    if m >= 1.0 {
+        return true;
+    }
+    let q = (1.0 - m).max(0.0);
+    if u < q {
+        return false;
+    }
+    *beta /= 1.0 - q;
+    true
+}

@@ -1,0 +1,152 @@
+//! `path`: unidirectional path tracing with next-event estimation. At every
+//! non-specular vertex a light is chosen by power and a point on it sampled
+//! (NEE); BSDF-sampled rays that hit an emitter also count; the two
+//! strategies are combined with Veach's power heuristic (Veach & Guibas 1995,
+//! Veach 1997 §9.2). Specular vertices and delta lights take weight 1 for
+//! their only strategy.
+//!
+//! | parameter | type | default | meaning                          |
+//! |-----------|------|---------|----------------------------------|
+//! | max_depth | int  | 1024    | maximum scattering events        |
+
+use super::{russian_roulette, Integrator, IntegratorOptions};
+use crate::light::Light;
+use crate::materials::{Bsdf, TransportMode};
+use crate::render::Workspace;
+use crate::sampling::{power_heuristic, Sampler};
+use crate::scene::{Scene, SurfaceInteraction};
+use crate::spectrum::{SampledSpectrum, SampledWavelengths};
+use glam::{UVec2, Vec3A};
+
+pub struct PathTracer {
+    max_depth: u32,
+}
+
+impl PathTracer {
+    pub fn new(o: &IntegratorOptions) -> Self {
+        Self { max_depth: o.max_depth }
+    }
+}
+
+/// What the previous vertex knows for weighting an emitter hit by its ray.
+struct PrevVertex {
+    p: Vec3A,
+    /// Solid-angle pdf of the BSDF sample that made the ray.
+    pdf_bsdf: f32,
+    /// The ray came from the camera or a specular lobe: no NEE competed.
+    specular: bool,
+}
+
+impl Integrator for PathTracer {
+    fn sample(
+        &self,
+        scene: &Scene,
+        pixel: UVec2,
+        sampler: &mut Sampler,
+        lambda: &mut SampledWavelengths,
+        _ws: &mut Workspace,
+    ) -> SampledSpectrum {
+        let mut ray = scene.camera.generate_ray(pixel.as_vec2() + sampler.get2d());
+        let mut l = SampledSpectrum::ZERO;
+        let mut beta = SampledSpectrum::ONE;
+        let mut eta_scale = 1.0;
+        let mut prev = PrevVertex { p: ray.o, pdf_bsdf: 0.0, specular: true };
+        for depth in 0.. {
+            let Some(si) = scene.intersect(&ray) else {
+                if let Some((i, env)) = scene.environment() {
+                    let w = emitter_weight(scene, &prev, i, env, prev.p + ray.d, Vec3A::ZERO);
+                    l += beta * env.environment_le(lambda) * w;
+                }
+                break;
+            };
+            if let Some(i) = si.light {
+                let light = &scene.lights[i as usize];
+                if let Light::Area(a) = light {
+                    let le = Light::area_le(a, si.ng, si.wo, lambda);
+                    if !le.is_black() {
+                        l += beta * le * emitter_weight(scene, &prev, i, light, si.p, si.ng);
+                    }
+                }
+            }
+            if depth == self.max_depth {
+                break;
+            }
+            let bsdf = scene.bsdf_at(&si, lambda);
+            let wo = si.frame.to_local(si.wo);
+            if bsdf.flags().is_non_specular() {
+                l += beta * next_event(scene, &si, bsdf, wo, sampler, lambda);
+            }
+            let Some(bs) = bsdf.sample(wo, sampler.get1d(), sampler.get2d(), lambda, TransportMode::Radiance) else {
+                break;
+            };
+            beta *= bs.f * (bs.wi.z.abs() / bs.pdf);
+            if bs.flags.is_transmission() {
+                eta_scale *= bs.eta * bs.eta;
+            }
+            prev = PrevVertex { p: si.p, pdf_bsdf: bs.pdf, specular: bs.is_specular() };
+            if beta.is_black() || !russian_roulette(&mut beta, eta_scale, depth, sampler.get1d()) {
+                break;
+            }
+            ray = si.spawn_ray(si.frame.to_world(bs.wi));
+        }
+        l
+    }
+
+    fn unsamplable(&self, scene: &Scene) -> Vec<String> {
+        crate::path::specular_chains_to_point_lights(scene)
+    }
+}
+
+/// MIS weight of an emitter found by a BSDF-sampled ray, against NEE having
+/// chosen the same point (power heuristic; NEE's pdf includes the light
+/// selection probability). For the environment `p_l` is any point along the
+/// ray's direction.
+#[inline]
+fn emitter_weight(scene: &Scene, prev: &PrevVertex, i: u32, light: &Light, p_l: Vec3A, n_l: Vec3A) -> f32 {
+    if prev.specular {
+        return 1.0;
+    }
+    let pdf_light = scene.light_pmf(i) * light.pdf_li(prev.p, p_l, n_l);
+    power_heuristic(prev.pdf_bsdf, pdf_light)
+}
+
+/// Next-event estimation: one light sample, weighted against BSDF sampling.
+#[inline]
+fn next_event(
+    scene: &Scene,
+    si: &SurfaceInteraction,
+    bsdf: &Bsdf,
+    wo: Vec3A,
+    sampler: &mut Sampler,
+    lambda: &SampledWavelengths,
+) -> SampledSpectrum {
+    let u_light = sampler.get1d();
+    let u = sampler.get2d();
+    let Some((i, pmf)) = scene.sample_light(u_light) else {
+        return SampledSpectrum::ZERO;
+    };
+    let light = &scene.lights[i as usize];
+    let Some(ls) = light.sample_li(si.p, u, lambda) else {
+        return SampledSpectrum::ZERO;
+    };
+    let wi = si.frame.to_local(ls.wi);
+    let f = bsdf.eval(wo, wi, lambda, TransportMode::Radiance) * wi.z.abs();
+    if f.is_black() {
+        return SampledSpectrum::ZERO;
+    }
+    let visible = if light.is_infinite() {
+        scene.escapes(si.p, si.ng, ls.wi)
+    } else {
+        scene.unoccluded(si.p, si.ng, ls.p, ls.n)
+    };
+    if !visible {
+        return SampledSpectrum::ZERO;
+    }
+    let pdf_light = pmf * ls.pdf_w;
+    let w = if light.is_delta_position() {
+        1.0
+    } else {
+        power_heuristic(pdf_light, bsdf.pdf(wo, wi, lambda, TransportMode::Radiance))
+    };
+    f * ls.l * (w / pdf_light)
+}

@@ -1,0 +1,245 @@
+//! `dielectric`: an interface between two dielectrics (glass, water, an air
+//! bubble), smooth or rough, reflecting and transmitting.
+//!
+//! - Smooth (effectively smooth alpha, or eta = 1): a delta reflection and a
+//!   delta refraction, one chosen with probability R or T = 1 - R (exact
+//!   Fresnel, `fr_dielectric`). eta = 1 is a pure pass-through (R = 0) at any
+//!   roughness: a rough interface between equal indices does not exist.
+//! - Rough: Walter, Marschner, Li & Torrance 2007, "Microfacet Models for
+//!   Refraction through Rough Surfaces": reflection eq. 20, transmission
+//!   eq. 21, generalised half vector eq. 16, Jacobians eqs. 14 and 17, with
+//!   the Trowbridge-Reitz distribution, height-correlated G2 and visible-normal
+//!   sampling of `microfacet`. The design follows pbrt-v4's `DielectricBxDF`
+//!   (§9.7): a visible normal is drawn, then reflection or refraction about it
+//!   with probability R(wo.wm) or T(wo.wm); microfacets back-facing wo or wi
+//!   are discarded (Walter §5.3).
+//! - `eta` is the IOR of the inside (the side the normal points away from)
+//!   relative to the outside; wo inside means the relative index is 1/eta.
+//! - Transport mode (Veach 1997 §5.2): in `Radiance` mode transmission is
+//!   scaled by 1/eta'^2, eta' = eta_t / eta_i the relative index crossed
+//!   (`BsdfSample::eta`); `Importance` mode has no such factor. So
+//!   f_radiance(wo, wi) = f_importance(wi, wo) for every pair.
+//! - Dispersion: directions and every value use eta at the hero wavelength
+//!   (`lambda.hero()`). For a non-constant eta (`is_dispersive`) the
+//!   integrator keeps only the hero wavelength; f is then returned in the hero
+//!   lane with the three secondary lanes set to 0, so a caller that forgot to
+//!   terminate the secondaries loses energy visibly instead of smearing the
+//!   hero's value over other wavelengths. A constant eta fills all four lanes.
+//!
+//! | parameter | type                    | default | meaning                                                  |
+//! |-----------|-------------------------|---------|----------------------------------------------------------|
+//! | ior       | float, spectrum or name | 1.5     | eta inside / outside; a name from `spectrum::GLASS_NAMES` |
+//! | roughness | float                   | 0       | perceptual roughness, alpha = roughness^2                |
+//! | alpha     | float                   | -       | isotropic GGX alpha (instead of roughness)               |
+//! | alpha_x   | float                   | -       | anisotropic GGX alpha along x (with alpha_y)             |
+//! | alpha_y   | float                   | -       | anisotropic GGX alpha along y (with alpha_x)             |
+
+use super::fresnel::{fr_dielectric, reflect, refract};
+use super::microfacet::{refraction_jacobian, TrowbridgeReitz};
+use super::{same_hemisphere, BsdfFlags, BsdfSample, TransportMode};
+use crate::spectrum::{SampledSpectrum, SampledWavelengths, Spectrum};
+use glam::{Vec2, Vec3A};
+
+#[derive(Clone, Debug)]
+pub struct Dielectric {
+    /// Index of the inside relative to the outside (the struct field behind
+    /// the scene's `ior`).
+    pub eta: Spectrum,
+    pub distrib: TrowbridgeReitz,
+}
+
+/// The (generalised) half vector of a direction pair and what it implies.
+#[derive(Clone, Copy, Debug)]
+struct HalfVector {
+    /// Microfacet normal, upper hemisphere.
+    wm: Vec3A,
+    /// eta_i / eta_o: index on wi's side over index on wo's side (1 for
+    /// reflection).
+    etap: f32,
+    reflect: bool,
+}
+
+impl Dielectric {
+    pub fn new(eta: Spectrum, alpha_x: f32, alpha_y: f32) -> Self {
+        Self { eta, distrib: TrowbridgeReitz::new(alpha_x, alpha_y) }
+    }
+
+    /// The relative index that drives directions: the hero wavelength's.
+    #[inline]
+    fn hero_eta(&self, lambda: &SampledWavelengths) -> f32 {
+        self.eta.eval(lambda.hero())
+    }
+
+    #[inline]
+    fn is_smooth(&self, eta: f32) -> bool {
+        eta == 1.0 || self.distrib.effectively_smooth()
+    }
+
+    /// A value computed at the hero eta as a spectrum (see the module doc).
+    #[inline]
+    fn spectral(&self, v: f32) -> SampledSpectrum {
+        if self.is_dispersive() {
+            SampledSpectrum::new(v, 0.0, 0.0, 0.0)
+        } else {
+            SampledSpectrum::splat(v)
+        }
+    }
+
+    #[inline]
+    pub fn eval(&self, wo: Vec3A, wi: Vec3A, lambda: &SampledWavelengths, mode: TransportMode) -> SampledSpectrum {
+        let eta = self.hero_eta(lambda);
+        if self.is_smooth(eta) {
+            return SampledSpectrum::ZERO;
+        }
+        match half_vector(wo, wi, eta) {
+            Some(h) => {
+                let r = fr_dielectric(wo.dot(h.wm), eta);
+                self.spectral(self.f_rough(wo, wi, h, r, mode))
+            }
+            None => SampledSpectrum::ZERO,
+        }
+    }
+
+    #[inline]
+    pub fn sample(
+        &self,
+        wo: Vec3A,
+        uc: f32,
+        u2: Vec2,
+        lambda: &SampledWavelengths,
+        mode: TransportMode,
+    ) -> Option<BsdfSample> {
+        let eta = self.hero_eta(lambda);
+        if self.is_smooth(eta) {
+            self.sample_smooth(wo, uc, eta, mode)
+        } else {
+            self.sample_rough(wo, uc, u2, eta, mode)
+        }
+    }
+
+    #[inline]
+    pub fn pdf(&self, wo: Vec3A, wi: Vec3A, lambda: &SampledWavelengths, _mode: TransportMode) -> f32 {
+        let eta = self.hero_eta(lambda);
+        if self.is_smooth(eta) {
+            return 0.0;
+        }
+        match half_vector(wo, wi, eta) {
+            Some(h) => self.pdf_rough(wo, wi, h, fr_dielectric(wo.dot(h.wm), eta)),
+            None => 0.0,
+        }
+    }
+
+    pub fn flags(&self) -> BsdfFlags {
+        if self.eta == Spectrum::Constant(1.0) {
+            BsdfFlags::SPECULAR_TRANSMISSION
+        } else if self.distrib.effectively_smooth() {
+            BsdfFlags::SPECULAR_REFLECTION | BsdfFlags::SPECULAR_TRANSMISSION
+        } else {
+            BsdfFlags::GLOSSY_REFLECTION | BsdfFlags::GLOSSY_TRANSMISSION
+        }
+    }
+
+    pub fn is_dispersive(&self) -> bool {
+        !self.eta.is_constant()
+    }
+
+    /// Delta reflection with probability R, delta refraction with T = 1 - R
+    /// (pbrt-v4 §9.5.2): each sample's weight f |cos| / pdf is 1, times
+    /// 1/eta'^2 for radiance-mode transmission.
+    fn sample_smooth(&self, wo: Vec3A, uc: f32, eta: f32, mode: TransportMode) -> Option<BsdfSample> {
+        let r = fr_dielectric(wo.z, eta);
+        if uc < r {
+            let wi = Vec3A::new(-wo.x, -wo.y, wo.z);
+            return BsdfSample::specular(wi, self.spectral(r), r, BsdfFlags::SPECULAR_REFLECTION, 1.0);
+        }
+        let (wi, etap) = refract(wo, Vec3A::Z, eta)?;
+        let t = 1.0 - r;
+        let scale = t * radiance_scale(mode, etap);
+        BsdfSample::specular(wi, self.spectral(scale), t, BsdfFlags::SPECULAR_TRANSMISSION, etap)
+    }
+
+    /// Visible normal, then reflection (probability R(wo.wm)) or refraction.
+    fn sample_rough(&self, wo: Vec3A, uc: f32, u2: Vec2, eta: f32, mode: TransportMode) -> Option<BsdfSample> {
+        if wo.z == 0.0 {
+            return None;
+        }
+        let wm = self.distrib.sample_wm(wo, u2);
+        let r = fr_dielectric(wo.dot(wm), eta);
+        let (wi, h, flags) = if uc < r {
+            let wi = reflect(wo, wm);
+            if !same_hemisphere(wo, wi) {
+                return None;
+            }
+            (wi, HalfVector { wm, etap: 1.0, reflect: true }, BsdfFlags::GLOSSY_REFLECTION)
+        } else {
+            let (wi, etap) = refract(wo, wm, eta)?;
+            if wi.z == 0.0 || same_hemisphere(wo, wi) {
+                return None;
+            }
+            (wi, HalfVector { wm, etap, reflect: false }, BsdfFlags::GLOSSY_TRANSMISSION)
+        };
+        let pdf = self.pdf_rough(wo, wi, h, r);
+        if !(pdf > 0.0) {
+            return None;
+        }
+        let f = self.spectral(self.f_rough(wo, wi, h, r, mode));
+        Some(BsdfSample { wi, f, pdf, flags, eta: h.etap })
+    }
+
+    /// Walter et al. 2007 eq. 20 (reflection) and eq. 21 (transmission, as
+    /// D G2 T |wo.wm| |dwm/dwi| / (|cos_o| |cos_i|)), `r` = R(wo.wm).
+    fn f_rough(&self, wo: Vec3A, wi: Vec3A, h: HalfVector, r: f32, mode: TransportMode) -> f32 {
+        let d = &self.distrib;
+        let dg = d.D(h.wm) * d.G2(wo, wi) / (wo.z * wi.z).abs();
+        if h.reflect {
+            dg * r / 4.0
+        } else {
+            let jacobian = refraction_jacobian(wo, wi, h.wm, h.etap);
+            dg * (1.0 - r) * wo.dot(h.wm).abs() * jacobian * radiance_scale(mode, h.etap)
+        }
+    }
+
+    /// Visible-normal density times the Jacobian, times the lobe probability.
+    fn pdf_rough(&self, wo: Vec3A, wi: Vec3A, h: HalfVector, r: f32) -> f32 {
+        let d = &self.distrib;
+        if h.reflect {
+            d.pdf_reflected(wo, h.wm) * r
+        } else {
+            d.pdf_refracted(wo, wi, h.wm, h.etap) * (1.0 - r)
+        }
+    }
+}
+
+/// The generalised half vector wm ~ wo + eta' wi (Walter et al. 2007 eq. 16;
+/// wo + wi for reflection), faced to +z, or None where the rough lobes vanish:
+/// grazing directions, a degenerate pair, or a microfacet that faces away
+/// from wo or wi (Walter §5.3).
+#[inline]
+fn half_vector(wo: Vec3A, wi: Vec3A, eta: f32) -> Option<HalfVector> {
+    let (cos_o, cos_i) = (wo.z, wi.z);
+    if cos_o == 0.0 || cos_i == 0.0 {
+        return None;
+    }
+    let reflect = (cos_o > 0.0) == (cos_i > 0.0);
+    let etap = match (reflect, cos_o > 0.0) {
+        (true, _) => 1.0,
+        (false, true) => eta,
+        (false, false) => 1.0 / eta,
+    };
+    let wm = (wi * etap + wo).try_normalize()?;
+    let wm = if wm.z < 0.0 { -wm } else { wm };
+    if wm.dot(wi) * cos_i <= 0.0 || wm.dot(wo) * cos_o <= 0.0 {
+        return None;
+    }
+    Some(HalfVector { wm, etap, reflect })
+}
+
+/// Veach 1997 §5.2: radiance is compressed by eta'^2 when it crosses into a
+/// denser medium; importance is not.
+#[inline]
+fn radiance_scale(mode: TransportMode, etap: f32) -> f32 {
+    match mode {
+        TransportMode::Radiance => 1.0 / (etap * etap),
+        TransportMode::Importance => 1.0,
+    }
+}

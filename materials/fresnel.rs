@@ -1,0 +1,126 @@
+//! `fresnel`: the laws of reflection and refraction at a smooth interface and
+//! the unpolarised Fresnel reflectance of dielectrics and conductors.
+//!
+//! Not a BSDF (it has no scene parameters): the dielectric, conductor and
+//! microfacet BSDFs share these functions so that each law is written once.
+//!
+//! - `fr_dielectric`: exact unpolarised reflectance between two dielectrics
+//!   (Born & Wolf, "Principles of Optics", §1.5.2; pbrt-v4 §9.3.2 `FrDielectric`).
+//! - `fr_conductor`: exact unpolarised reflectance of a conductor with complex
+//!   index eta + i k, evaluated per wavelength on four lanes at once. It uses the
+//!   real-arithmetic form of the complex Fresnel equations (Born & Wolf §14.2;
+//!   the form of pbrt-v3 `FrConductor` / Lagarde 2013, "Memo on Fresnel
+//!   equations"), algebraically equal to pbrt-v4's complex `FrComplex`; the
+//!   tests compare it against complex arithmetic in f64.
+//! - `reflect`, `refract`: mirror and Snell directions (pbrt-v4 §9.3, eq. 9.4).
+//!
+//! Convention: `eta` is the index of the side the normal points away from
+//! (inside) relative to the side it points to (outside). A negative cosine
+//! means the incident direction is inside, and eta is flipped.
+
+use crate::spectrum::SampledSpectrum;
+use glam::{Vec3A, Vec4};
+
+/// Unpolarised Fresnel reflectance of a dielectric interface for light arriving
+/// with cosine `cos_theta_i` to the normal (negative: from the inside).
+/// Returns 1 under total internal reflection and 0 for a matched index.
+#[inline]
+pub fn fr_dielectric(cos_theta_i: f32, eta: f32) -> f32 {
+    if eta == 1.0 {
+        // No interface at all (also avoids 0/0 at grazing incidence).
+        return 0.0;
+    }
+    let (cos_i, eta) =
+        if cos_theta_i < 0.0 { (-cos_theta_i.max(-1.0), 1.0 / eta) } else { (cos_theta_i.min(1.0), eta) };
+    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+    if sin2_t >= 1.0 {
+        return 1.0;
+    }
+    let cos_t = (1.0 - sin2_t).max(0.0).sqrt();
+    // Born & Wolf eq. 1.5.(21a)-(21b), written with the relative index.
+    let r_parl = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    let r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    0.5 * (r_parl * r_parl + r_perp * r_perp)
+}
+
+/// Unpolarised Fresnel reflectance of a conductor with complex relative index
+/// `eta + i k` (per wavelength), for light arriving from outside with cosine
+/// `cos_theta_i` (clamped to [0, 1]).
+///
+/// With a^2 + b^2 = |eta~^2 - sin^2|, the reflectances for s and p light are
+/// Rs = (a^2+b^2 - 2a cos + cos^2) / (a^2+b^2 + 2a cos + cos^2) and
+/// Rp = Rs (cos^2 (a^2+b^2) - 2a cos sin^2 + sin^4) / (... + ...).
+#[inline]
+pub fn fr_conductor(cos_theta_i: f32, eta: SampledSpectrum, k: SampledSpectrum) -> SampledSpectrum {
+    let cos_i = cos_theta_i.clamp(0.0, 1.0);
+    let cos2 = cos_i * cos_i;
+    let sin2 = 1.0 - cos2;
+    let (eta2, k2) = (eta.0 * eta.0, k.0 * k.0);
+    let t0 = eta2 - k2 - Vec4::splat(sin2);
+    let a2_plus_b2 = (t0 * t0 + 4.0 * eta2 * k2).max(Vec4::ZERO).powf(0.5);
+    let a = (0.5 * (a2_plus_b2 + t0)).max(Vec4::ZERO).powf(0.5);
+    let t1 = a2_plus_b2 + Vec4::splat(cos2);
+    let t2 = 2.0 * cos_i * a;
+    let rs = ratio_or_one(t1 - t2, t1 + t2);
+    let t3 = cos2 * a2_plus_b2 + Vec4::splat(sin2 * sin2);
+    let t4 = t2 * sin2;
+    let rp = rs * ratio_or_one(t3 - t4, t3 + t4);
+    SampledSpectrum(0.5 * (rs + rp))
+}
+
+/// n / d, or 1 (total reflection) where the denominator vanishes: that happens
+/// only for a vanishing complex index or for grazing light on a matched index.
+#[inline]
+fn ratio_or_one(n: Vec4, d: Vec4) -> Vec4 {
+    Vec4::select(d.cmpgt(Vec4::ZERO), n / d, Vec4::ONE)
+}
+
+/// Mirror direction of `wo` about the (unit) normal `n`.
+#[inline]
+pub fn reflect(wo: Vec3A, n: Vec3A) -> Vec3A {
+    -wo + 2.0 * wo.dot(n) * n
+}
+
+/// Snell refraction of `wi` (pointing away from the surface) through an
+/// interface with normal `n` and relative index `eta` (inside over outside).
+/// Returns the transmitted direction and the relative index eta' = eta_t /
+/// eta_i actually crossed (eta, or 1/eta when `wi` is inside), or None under
+/// total internal reflection (pbrt-v4 eq. 9.4 and `Refract`).
+#[inline]
+pub fn refract(wi: Vec3A, n: Vec3A, eta: f32) -> Option<(Vec3A, f32)> {
+    let mut cos_i = n.dot(wi);
+    let (n, etap) = if cos_i < 0.0 {
+        cos_i = -cos_i;
+        (-n, 1.0 / eta)
+    } else {
+        (n, eta)
+    };
+    let sin2_t = (1.0 - cos_i * cos_i).max(0.0) / (etap * etap);
+    if sin2_t >= 1.0 {
+        return None;
+    }
+    let cos_t = (1.0 - sin2_t).max(0.0).sqrt();
+    Some((-wi / etap + (cos_i / etap - cos_t) * n, etap))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dielectric_normal_incidence_and_tir() {
+        let r0 = ((1.5f32 - 1.0) / 2.5).powi(2);
+        assert!((fr_dielectric(1.0, 1.5) - r0).abs() < 1e-6);
+        assert!((fr_dielectric(-1.0, 1.5) - r0).abs() < 1e-6);
+        assert_eq!(fr_dielectric(-0.3, 1.5), 1.0);
+        assert_eq!(fr_dielectric(0.0, 1.0), 0.0);
+    }
+
+    #[test]
+    fn conductor_with_zero_k_is_a_dielectric() {
+        for &c in &[1.0f32, 0.7, 0.3, 0.05] {
+            let r = fr_conductor(c, SampledSpectrum::splat(1.5), SampledSpectrum::ZERO);
+            assert!((r[0] - fr_dielectric(c, 1.5)).abs() < 1e-5, "{c}: {r:?}");
+        }
+    }
+}

@@ -1,0 +1,188 @@
+//! The pinhole camera: primary rays, and the adjoint side (importance We, its
+//! densities, the raster position of a world point) that light tracing and
+//! BDPT need.
+//!
+//! The image rectangle lies on the plane at distance 1 in front of the
+//! pinhole; A is its area. Following Veach 1997 §10.8 and pbrt's
+//! PerspectiveCamera, the importance of a direction at angle theta to the
+//! optical axis is We = 1 / (A cos^4 theta) inside the frame, normalised so
+//! that the integral of We cos theta over the image's solid angle is 1. A
+//! pixel's measurement (its box-filtered radiance) is We scaled by the
+//! number of pixels, which is why the film divides splats by spp and not by
+//! the total number of light paths.
+
+use crate::geometry::Ray;
+use glam::{Vec2, Vec3A};
+
+#[derive(Clone, Debug)]
+pub struct Camera {
+    pub position: Vec3A,
+    /// Unit vectors: optical axis, screen right, screen up.
+    forward: Vec3A,
+    right: Vec3A,
+    up: Vec3A,
+    pub width: u32,
+    pub height: u32,
+    /// Half extents of the image rectangle on the plane z = 1.
+    half_w: f32,
+    half_h: f32,
+}
+
+/// A direction from a scene point to the camera, with its importance.
+#[derive(Clone, Copy, Debug)]
+pub struct CameraWiSample {
+    /// Unit direction from the reference point towards the pinhole.
+    pub wi: Vec3A,
+    pub dist: f32,
+    /// Raster position (pixels) where the point projects.
+    pub raster: Vec2,
+    /// Importance We of the direction (whole-image normalisation).
+    pub we: f32,
+    /// Solid-angle density at the reference point of choosing the pinhole:
+    /// dist^2 / |cos theta| (the pinhole is a delta in position, area 1).
+    pub pdf_w: f32,
+}
+
+impl Camera {
+    /// `fov_y_deg` is the full vertical field of view. Looking along
+    /// `look_at - position`, screen right is forward x up, so in a left-handed
+    /// scene convention (the Cornell box data) +x appears on the left.
+    pub fn new(position: Vec3A, look_at: Vec3A, up: Vec3A, fov_y_deg: f32, width: u32, height: u32) -> Self {
+        let forward = (look_at - position).normalize();
+        let right = forward.cross(up).normalize();
+        let up = right.cross(forward);
+        let half_h = (fov_y_deg.to_radians() * 0.5).tan();
+        let half_w = half_h * width as f32 / height as f32;
+        Self { position, forward, right, up, width, height, half_w, half_h }
+    }
+
+    /// The same camera with another resolution (the vertical field of view
+    /// is kept).
+    pub fn with_resolution(&self, width: u32, height: u32) -> Self {
+        let mut c = self.clone();
+        c.width = width;
+        c.height = height;
+        c.half_w = self.half_h * width as f32 / height as f32;
+        c
+    }
+
+    /// Area of the image rectangle on the plane at distance 1.
+    #[inline]
+    pub fn image_area(&self) -> f32 {
+        4.0 * self.half_w * self.half_h
+    }
+
+    /// The ray through raster position `raster` (pixels, origin top-left).
+    #[inline]
+    pub fn generate_ray(&self, raster: Vec2) -> Ray {
+        let sx = (2.0 * raster.x / self.width as f32 - 1.0) * self.half_w;
+        let sy = (1.0 - 2.0 * raster.y / self.height as f32) * self.half_h;
+        let d = (self.forward + self.right * sx + self.up * sy).normalize();
+        Ray::new(self.position, d)
+    }
+
+    /// Raster position of a direction leaving the pinhole, if inside the image.
+    #[inline]
+    pub fn raster_of_direction(&self, d: Vec3A) -> Option<Vec2> {
+        let z = d.dot(self.forward);
+        if z <= 0.0 {
+            return None;
+        }
+        let sx = d.dot(self.right) / z;
+        let sy = d.dot(self.up) / z;
+        let rx = (sx / self.half_w + 1.0) * 0.5 * self.width as f32;
+        let ry = (1.0 - sy / self.half_h) * 0.5 * self.height as f32;
+        let inside = (0.0..self.width as f32).contains(&rx) && (0.0..self.height as f32).contains(&ry);
+        inside.then_some(Vec2::new(rx, ry))
+    }
+
+    /// Importance We of a unit direction leaving the pinhole (0 outside the
+    /// image): 1 / (A cos^4 theta).
+    #[inline]
+    pub fn we(&self, d: Vec3A) -> f32 {
+        if self.raster_of_direction(d).is_none() {
+            return 0.0;
+        }
+        let c = d.dot(self.forward);
+        1.0 / (self.image_area() * c * c * c * c)
+    }
+
+    /// Directional density of primary rays (solid angle): 1 / (A cos^3 theta),
+    /// 0 outside the image. The positional density is a delta (pinhole).
+    #[inline]
+    pub fn pdf_we_dir(&self, d: Vec3A) -> f32 {
+        if self.raster_of_direction(d).is_none() {
+            return 0.0;
+        }
+        let c = d.dot(self.forward);
+        1.0 / (self.image_area() * c * c * c)
+    }
+
+    /// Cosine between a unit direction leaving the pinhole and the optical axis.
+    #[inline]
+    pub fn cos_theta(&self, d: Vec3A) -> f32 {
+        d.dot(self.forward)
+    }
+
+    /// Connect a scene point to the pinhole (pbrt's Camera::SampleWi).
+    #[inline]
+    pub fn sample_wi(&self, p_ref: Vec3A) -> Option<CameraWiSample> {
+        let to_cam = self.position - p_ref;
+        let dist2 = to_cam.length_squared();
+        if dist2 == 0.0 {
+            return None;
+        }
+        let dist = dist2.sqrt();
+        let wi = to_cam / dist;
+        let d = -wi;
+        let raster = self.raster_of_direction(d)?;
+        let cos = self.cos_theta(d);
+        let we = 1.0 / (self.image_area() * cos * cos * cos * cos);
+        Some(CameraWiSample { wi, dist, raster, we, pdf_w: dist2 / cos })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cam() -> Camera {
+        Camera::new(Vec3A::ZERO, Vec3A::Z, Vec3A::Y, 60.0, 64, 48)
+    }
+
+    #[test]
+    fn raster_round_trip() {
+        let c = cam();
+        for (x, y) in [(0.5, 0.5), (31.2, 20.7), (63.9, 47.9)] {
+            let r = c.generate_ray(Vec2::new(x, y));
+            let back = c.raster_of_direction(r.d).unwrap();
+            assert!((back - Vec2::new(x, y)).length() < 1e-3, "{back}");
+        }
+    }
+
+    #[test]
+    fn importance_integrates_to_one_over_the_image() {
+        // Integral over the image's solid angle of We cos = 1, computed on the
+        // z = 1 plane where d omega = cos^3 dA.
+        let c = cam();
+        let n = 400;
+        let mut sum = 0.0f64;
+        for i in 0..n {
+            for j in 0..n {
+                let r = Vec2::new((i as f32 + 0.5) / n as f32 * 64.0, (j as f32 + 0.5) / n as f32 * 48.0);
+                let d = c.generate_ray(r).d;
+                let cos = c.cos_theta(d);
+                let da = c.image_area() / (n * n) as f32;
+                sum += (c.we(d) * cos * cos * cos * cos * da) as f64;
+            }
+        }
+        assert!((sum - 1.0).abs() < 1e-3, "{sum}");
+    }
+
+    #[test]
+    fn plus_x_is_on_the_left_for_the_cornell_convention() {
+        let c = Camera::new(Vec3A::ZERO, Vec3A::Z, Vec3A::Y, 40.0, 10, 10);
+        let r = c.raster_of_direction(Vec3A::new(0.1, 0.0, 1.0).normalize()).unwrap();
+        assert!(r.x < 5.0);
+    }
+}

@@ -1,0 +1,252 @@
+//! Light sources: diffuse area emission on triangles, point lights, and a
+//! constant environment. Each offers the two sampling routines the
+//! estimators need (pbrt-v4's interface):
+//! - `sample_li`: a point on the light seen from a reference point, with its
+//!   density in solid angle at the reference (next-event estimation);
+//! - `sample_le`: an emitted ray (position and direction densities separately,
+//!   area and solid angle) for light tracing and BDPT light subpaths.
+//! Lights are an enum matched in the hot loop; one light per emissive triangle.
+
+use crate::geometry::{Frame, Ray};
+use crate::sampling::{cosine_hemisphere, uniform_sphere, uniform_triangle, UNIFORM_SPHERE_PDF};
+use crate::spectrum::{SampledSpectrum, SampledWavelengths, Spectrum};
+use glam::{Vec2, Vec3A};
+use std::f32::consts::PI;
+
+#[derive(Clone, Debug)]
+pub enum Light {
+    Area(AreaLight),
+    Point(PointLight),
+    Environment(EnvironmentLight),
+}
+
+/// A triangle emitting radiance `le` from its front side (the side its
+/// winding's normal points to), or from both sides.
+#[derive(Clone, Debug)]
+pub struct AreaLight {
+    pub v: [Vec3A; 3],
+    pub n: Vec3A,
+    pub area: f32,
+    pub le: Spectrum,
+    pub two_sided: bool,
+    /// Index of the scene triangle.
+    pub prim: u32,
+}
+
+/// An isotropic point light of radiant intensity `intensity` (W/sr per nm).
+#[derive(Clone, Debug)]
+pub struct PointLight {
+    pub p: Vec3A,
+    pub intensity: Spectrum,
+}
+
+/// Constant radiance from every direction at infinity. `center`/`radius`
+/// bound the scene (set by the scene builder) for emitted rays.
+#[derive(Clone, Debug)]
+pub struct EnvironmentLight {
+    pub le: Spectrum,
+    pub center: Vec3A,
+    pub radius: f32,
+}
+
+/// A light point chosen for next-event estimation.
+#[derive(Clone, Copy, Debug)]
+pub struct LightLiSample {
+    pub l: SampledSpectrum,
+    /// Unit direction from the reference point towards the light.
+    pub wi: Vec3A,
+    /// Distance to the light point (infinite for the environment).
+    pub dist: f32,
+    pub p: Vec3A,
+    /// Surface normal at the light point (zero for point/environment).
+    pub n: Vec3A,
+    /// Solid-angle density at the reference point (for a delta light: 1).
+    pub pdf_w: f32,
+}
+
+/// An emitted ray for light subpaths.
+#[derive(Clone, Copy, Debug)]
+pub struct LightLeSample {
+    pub ray: Ray,
+    pub n: Vec3A,
+    pub l: SampledSpectrum,
+    /// Area density of the origin (delta lights: 1).
+    pub pdf_pos: f32,
+    /// Solid-angle density of the direction.
+    pub pdf_dir: f32,
+}
+
+impl Light {
+    /// Whether the light's position is a delta distribution (cannot be hit).
+    #[inline]
+    pub fn is_delta_position(&self) -> bool {
+        matches!(self, Light::Point(_))
+    }
+
+    #[inline]
+    pub fn is_infinite(&self) -> bool {
+        matches!(self, Light::Environment(_))
+    }
+
+    /// Emitted power, used only to choose lights proportionally (luminance).
+    pub fn power(&self) -> f32 {
+        match self {
+            Light::Area(a) => PI * a.area * a.le.luminance() * if a.two_sided { 2.0 } else { 1.0 },
+            Light::Point(p) => 4.0 * PI * p.intensity.luminance(),
+            Light::Environment(e) => 4.0 * PI * PI * e.radius * e.radius * e.le.luminance(),
+        }
+    }
+
+    /// Radiance leaving an area light's point with normal `n` in direction `w`.
+    #[inline]
+    pub fn area_le(a: &AreaLight, n: Vec3A, w: Vec3A, lambda: &SampledWavelengths) -> SampledSpectrum {
+        if !a.two_sided && n.dot(w) <= 0.0 {
+            return SampledSpectrum::ZERO;
+        }
+        a.le.sample(lambda)
+    }
+
+    /// Radiance of the environment arriving from any direction.
+    #[inline]
+    pub fn environment_le(&self, lambda: &SampledWavelengths) -> SampledSpectrum {
+        match self {
+            Light::Environment(e) => e.le.sample(lambda),
+            _ => SampledSpectrum::ZERO,
+        }
+    }
+
+    pub fn sample_li(&self, p_ref: Vec3A, u: Vec2, lambda: &SampledWavelengths) -> Option<LightLiSample> {
+        match self {
+            Light::Area(a) => {
+                let (b0, b1) = uniform_triangle(u);
+                let p = a.v[0] * b0 + a.v[1] * b1 + a.v[2] * (1.0 - b0 - b1);
+                let to = p - p_ref;
+                let dist2 = to.length_squared();
+                if dist2 == 0.0 {
+                    return None;
+                }
+                let dist = dist2.sqrt();
+                let wi = to / dist;
+                let cos_l = a.n.dot(-wi);
+                let l = Self::area_le(a, a.n, -wi, lambda);
+                if l.is_black() || cos_l == 0.0 {
+                    return None;
+                }
+                let pdf_w = dist2 / (cos_l.abs() * a.area);
+                Some(LightLiSample { l, wi, dist, p, n: a.n, pdf_w })
+            }
+            Light::Point(pl) => {
+                let to = pl.p - p_ref;
+                let dist2 = to.length_squared();
+                if dist2 == 0.0 {
+                    return None;
+                }
+                let dist = dist2.sqrt();
+                let l = pl.intensity.sample(lambda) / dist2;
+                Some(LightLiSample { l, wi: to / dist, dist, p: pl.p, n: Vec3A::ZERO, pdf_w: 1.0 })
+            }
+            Light::Environment(e) => {
+                let wi = uniform_sphere(u);
+                Some(LightLiSample {
+                    l: e.le.sample(lambda),
+                    wi,
+                    dist: f32::INFINITY,
+                    p: p_ref + wi * (2.0 * e.radius),
+                    n: Vec3A::ZERO,
+                    pdf_w: UNIFORM_SPHERE_PDF,
+                })
+            }
+        }
+    }
+
+    /// Solid-angle density of `sample_li` choosing the light point `p_l`
+    /// (normal `n_l`) from `p_ref`; for the environment, of direction `wi`.
+    #[inline]
+    pub fn pdf_li(&self, p_ref: Vec3A, p_l: Vec3A, n_l: Vec3A) -> f32 {
+        match self {
+            Light::Area(a) => {
+                let to = p_l - p_ref;
+                let dist2 = to.length_squared();
+                let cos_l = n_l.dot(to).abs() / dist2.sqrt();
+                if cos_l == 0.0 {
+                    return 0.0;
+                }
+                dist2 / (cos_l * a.area)
+            }
+            Light::Point(_) => 0.0,
+            Light::Environment(_) => UNIFORM_SPHERE_PDF,
+        }
+    }
+
+    pub fn sample_le(&self, u1: Vec2, u2: Vec2, lambda: &SampledWavelengths) -> Option<LightLeSample> {
+        match self {
+            Light::Area(a) => {
+                let (b0, b1) = uniform_triangle(u1);
+                let p = a.v[0] * b0 + a.v[1] * b1 + a.v[2] * (1.0 - b0 - b1);
+                let (u, flip) = if a.two_sided {
+                    // Pick a side with the first coordinate, then remap it.
+                    if u2.x < 0.5 {
+                        (Vec2::new(u2.x * 2.0, u2.y), false)
+                    } else {
+                        (Vec2::new(u2.x * 2.0 - 1.0, u2.y), true)
+                    }
+                } else {
+                    (u2, false)
+                };
+                let n = if flip { -a.n } else { a.n };
+                let local = cosine_hemisphere(u);
+                let d = Frame::from_normal(n).to_world(local);
+                let side_pdf = if a.two_sided { 0.5 } else { 1.0 };
+                let pdf_dir = side_pdf * local.z / PI;
+                if pdf_dir == 0.0 {
+                    return None;
+                }
+                Some(LightLeSample { ray: Ray::new(p, d), n, l: a.le.sample(lambda), pdf_pos: 1.0 / a.area, pdf_dir })
+            }
+            Light::Point(pl) => {
+                let d = uniform_sphere(u2);
+                Some(LightLeSample {
+                    ray: Ray::new(pl.p, d),
+                    n: Vec3A::ZERO,
+                    l: pl.intensity.sample(lambda),
+                    pdf_pos: 1.0,
+                    pdf_dir: UNIFORM_SPHERE_PDF,
+                })
+            }
+            Light::Environment(e) => {
+                // A direction into the scene, then a point on the disk of the
+                // scene's bounding sphere perpendicular to it (pbrt-v4).
+                let d = -uniform_sphere(u2);
+                let frame = Frame::from_normal(d);
+                let disk = crate::sampling::concentric_disk(u1) * e.radius;
+                let o = e.center - d * e.radius + frame.s * disk.x + frame.t * disk.y;
+                Some(LightLeSample {
+                    ray: Ray::new(o, d),
+                    n: d,
+                    l: e.le.sample(lambda),
+                    pdf_pos: 1.0 / (PI * e.radius * e.radius),
+                    pdf_dir: UNIFORM_SPHERE_PDF,
+                })
+            }
+        }
+    }
+
+    /// Densities (area, solid angle) with which `sample_le` emits direction
+    /// `w` from a point with normal `n` on this light.
+    #[inline]
+    pub fn pdf_le(&self, n: Vec3A, w: Vec3A) -> (f32, f32) {
+        match self {
+            Light::Area(a) => {
+                let cos = n.dot(w);
+                let pdf_dir = if a.two_sided {
+                    0.5 * cos.abs() / PI
+                } else {
+                    cos.max(0.0) / PI
+                };
+                (1.0 / a.area, pdf_dir)
+            }
+            Light::Point(_) => (1.0, UNIFORM_SPHERE_PDF),
+            Light::Environment(e) => (1.0 / (PI * e.radius * e.radius), UNIFORM_SPHERE_PDF),
+        }
+    }
+}

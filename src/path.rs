@@ -1,0 +1,490 @@
+//! What the bidirectional estimators (light tracing, BDPT) share: the path
+//! vertex with its forward and reverse densities in area measure, light- and
+//! camera-subpath generation by random walk, the densities MIS needs, and the
+//! connection of a light-subpath vertex to the pinhole (the t = 1 strategy).
+//! Also the scene checks for path classes that no estimator with a pinhole
+//! camera can sample.
+//!
+//! Notation (Veach 1997 ch. 10, pbrt-v3 `bdpt.h`, SmallVCM): a light subpath
+//! y_0 .. y_{s-1} starts on a light, a camera subpath z_0 .. z_{t-1} at the
+//! pinhole; strategy (s, t) joins y_{s-1} to z_{t-1}. Every vertex keeps
+//! - `beta`: the subpath throughput up to and including the vertex, i.e.
+//!   Veach's alpha_i (eq. 10.6) = product of (f |cos| / pdf) along the walk;
+//!   for a light origin it is Le^(0) / P_A (emitted radiance over the
+//!   density of choosing the light and the point on it);
+//! - `pdf_fwd`: the density with which its own subpath generated it, and
+//!   `pdf_rev`: the density with which the OTHER subpath would have generated
+//!   it (the walk in the reverse direction), both in AREA measure (Veach
+//!   §10.2.1: P_A = P_sigma_perp G, here pdf_w |cos at the vertex| / d^2 with
+//!   the vertex's geometric normal). Specular scattering stores 0 for both
+//!   (a delta density; MIS remaps it to 1 so it cancels, §10.3.5);
+//! - `delta`: the vertex scattered by a specular (delta) lobe.
+//!
+//! Vertices at infinity (the environment light, `VertexKind::Environment`)
+//! follow pbrt-v3/v4: their own density is the solid-angle density of their
+//! direction (light-choice pmf x `pdf_li`), a solid-angle density converted
+//! "to" them is left unchanged, and the density they give the next vertex is
+//! planar: the emitted ray's origin lies on a disk of radius R perpendicular
+//! to the direction (density 1 / (pi R^2)), times |cos| at the vertex hit.
+//!
+//! Transport modes (Veach §5.2-5.3): camera subpaths carry radiance and call
+//! the BSDF in `TransportMode::Radiance`; light subpaths carry importance and
+//! call it in `TransportMode::Importance`, and every importance-mode BSDF
+//! factor, in the walk as in connections, is multiplied by Veach's
+//! shading-normal correction (eq. 5.19, `SurfaceInteraction::
+//! shading_correction`), since the adjoint of a BSDF evaluated with a
+//! shading normal is not the BSDF itself (pbrt-v3 does this; pbrt-v4's BDPT
+//! omits it). With flat shading (ns = ng) the factor is 1.
+//!
+//! Russian roulette ends both walks: from the third bounce on, the relative
+//! throughput (beta over its value on leaving the endpoint, so a light
+//! path's huge Le / pdf does not disable it) decides survival
+//! (`integrators::russian_roulette`). It is NOT folded into the MIS densities
+//! (TRANSPORT-NOTES §6h): the weights are then computed from densities that
+//! ignore roulette, which still sum to one over the strategies of every path,
+//! while each contribution divides by its true survival probability, so the
+//! estimate stays unbiased.
+//!
+//! Dispersion: both subpaths of a sample share one `SampledWavelengths` and
+//! fetch BSDFs with `Scene::bsdf_at`, so a dispersive surface met by either
+//! walk keeps only the hero wavelength for the whole sample; connections are
+//! evaluated after both walks, and the driver converts splats with the final
+//! wavelengths (TRANSPORT-NOTES §7).
+
+use crate::camera::CameraWiSample;
+use crate::geometry::{Frame, Ray};
+use crate::integrators::russian_roulette;
+use crate::light::Light;
+use crate::materials::TransportMode;
+use crate::render::Splat;
+use crate::sampling::Sampler;
+use crate::scene::{Scene, SurfaceInteraction};
+use crate::spectrum::{SampledSpectrum, SampledWavelengths};
+use glam::{Vec2, Vec3A};
+
+/// What a path vertex is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum VertexKind {
+    /// The pinhole (z_0). Its position is a delta; never "on a surface".
+    Camera,
+    /// A point on an area light or a point light (y_0 of a light subpath, or
+    /// the light sample of the s = 1 strategy).
+    Light,
+    /// A scattering point on a surface (it may also emit).
+    Surface,
+    /// The environment light, a vertex at infinity: the end of a camera
+    /// subpath that escaped, or the origin of a light subpath it emitted.
+    Environment,
+}
+
+/// A vertex of a light or camera subpath (see the module doc for the
+/// meaning of each density).
+#[derive(Clone, Copy, Debug)]
+pub struct Vertex {
+    pub kind: VertexKind,
+    /// Position, geometric normal `ng` (zero off surfaces: camera, point
+    /// light, environment), shading frame, `wo` and material. `wo` is the
+    /// unit direction towards the previous vertex of the vertex's own
+    /// subpath; for an `Environment` vertex it is the direction light from
+    /// the environment travels into the scene. `light` names the emitter at
+    /// this vertex (a light, an emissive surface, the environment).
+    pub si: SurfaceInteraction,
+    pub beta: SampledSpectrum,
+    pub delta: bool,
+    pub pdf_fwd: f32,
+    pub pdf_rev: f32,
+}
+
+/// Reused per-worker vertex storage for the bidirectional estimators (no
+/// allocation per sample once the vectors have grown to the longest path).
+#[derive(Default)]
+pub struct PathScratch {
+    pub camera: Vec<Vertex>,
+    pub light: Vec<Vertex>,
+}
+
+impl Vertex {
+    fn new(kind: VertexKind, si: SurfaceInteraction, beta: SampledSpectrum, pdf_fwd: f32) -> Self {
+        Self { kind, si, beta, delta: false, pdf_fwd, pdf_rev: 0.0 }
+    }
+
+    fn endpoint(kind: VertexKind, p: Vec3A, n: Vec3A, wo: Vec3A, light: Option<u32>) -> SurfaceInteraction {
+        let frame = if n == Vec3A::ZERO { Frame::from_normal(Vec3A::Z) } else { Frame::from_normal(n) };
+        debug_assert!(kind != VertexKind::Surface);
+        SurfaceInteraction { p, t: 0.0, ng: n, frame, wo, material: u32::MAX, light }
+    }
+
+    /// The pinhole as the first camera vertex, with throughput `beta`.
+    pub fn camera(scene: &Scene, beta: SampledSpectrum) -> Self {
+        let si = Self::endpoint(VertexKind::Camera, scene.camera.position, Vec3A::ZERO, Vec3A::ZERO, None);
+        Self::new(VertexKind::Camera, si, beta, 0.0)
+    }
+
+    /// A light origin (area or point light `light` at `p`, surface normal
+    /// `n`, zero for a point light), throughput `beta` = Le / pdf and
+    /// origin density `pdf_fwd`.
+    pub fn light(light: u32, p: Vec3A, n: Vec3A, beta: SampledSpectrum, pdf_fwd: f32) -> Self {
+        let si = Self::endpoint(VertexKind::Light, p, n, Vec3A::ZERO, Some(light));
+        Self::new(VertexKind::Light, si, beta, pdf_fwd)
+    }
+
+    /// The environment light `light` as a vertex at infinity; `w_in` is the
+    /// direction its light travels into the scene, `p` any point far away
+    /// along -w_in.
+    pub fn environment(light: u32, p: Vec3A, w_in: Vec3A, beta: SampledSpectrum, pdf_fwd: f32) -> Self {
+        let si = Self::endpoint(VertexKind::Environment, p, Vec3A::ZERO, w_in, Some(light));
+        Self::new(VertexKind::Environment, si, beta, pdf_fwd)
+    }
+
+    #[inline]
+    pub fn p(&self) -> Vec3A {
+        self.si.p
+    }
+
+    /// pbrt's IsOnSurface: the vertex has a normal that cosines refer to.
+    #[inline]
+    pub fn is_on_surface(&self) -> bool {
+        self.si.ng != Vec3A::ZERO
+    }
+
+    #[inline]
+    pub fn is_infinite(&self) -> bool {
+        self.kind == VertexKind::Environment
+    }
+
+    /// The emitter at this vertex, if any (a surface vertex on an emissive
+    /// triangle is one).
+    #[inline]
+    pub fn emitter<'a>(&self, scene: &'a Scene) -> Option<(u32, &'a Light)> {
+        self.si.light.map(|i| (i, &scene.lights[i as usize]))
+    }
+
+    /// A point light: its position cannot be hit by a walk.
+    #[inline]
+    pub fn is_delta_light(&self, scene: &Scene) -> bool {
+        self.kind == VertexKind::Light && self.emitter(scene).is_some_and(|(_, l)| l.is_delta_position())
+    }
+
+    /// Whether a deterministic connection can end here: the pinhole, a
+    /// light, or a surface with a non-specular lobe.
+    #[inline]
+    pub fn is_connectible(&self, scene: &Scene) -> bool {
+        match self.kind {
+            VertexKind::Camera | VertexKind::Light | VertexKind::Environment => true,
+            VertexKind::Surface => scene.bsdf(&self.si).flags().is_non_specular(),
+        }
+    }
+
+    /// Unit direction from this vertex towards `next`, and 1 / d^2 (1 when
+    /// `next` is at infinity); None for coincident points.
+    #[inline]
+    pub fn direction_to(&self, next: &Vertex) -> Option<(Vec3A, f32)> {
+        if next.is_infinite() {
+            return Some((-next.si.wo, 1.0));
+        }
+        if self.is_infinite() {
+            return Some((self.si.wo, 1.0));
+        }
+        let d = next.p() - self.p();
+        let d2 = d.length_squared();
+        if d2 == 0.0 || !d2.is_finite() {
+            return None;
+        }
+        Some((d / d2.sqrt(), 1.0 / d2))
+    }
+
+    /// Converts a density of leaving this vertex towards `next` into area
+    /// measure at `next`: pdf_w |cos at next| / d^2 with next's GEOMETRIC
+    /// normal (Veach eq. 8.10; pbrt `ConvertDensity`). From a vertex at
+    /// infinity `pdf` is planar (per unit area across the direction), so
+    /// only |cos| applies; towards a vertex at infinity it stays a solid-angle
+    /// density.
+    #[inline]
+    pub fn convert_density(&self, pdf: f32, next: &Vertex) -> f32 {
+        let Some((w, inv_d2)) = self.direction_to(next) else {
+            return 0.0;
+        };
+        if next.is_infinite() {
+            return pdf;
+        }
+        let cos = if next.is_on_surface() { next.si.ng.dot(w).abs() } else { 1.0 };
+        pdf * cos * inv_d2
+    }
+
+    /// The scattering factor at this vertex for the step towards `next`: the
+    /// BSDF between `wo` and the direction to `next` (importance mode times
+    /// Veach's eq. 5.19 correction), or for a light origin the directional
+    /// part of emission, Le^(1) (Veach eq. 8.7), 0 or 1 for prism's lights.
+    pub fn f(&self, scene: &Scene, next: &Vertex, lambda: &SampledWavelengths, mode: TransportMode) -> SampledSpectrum {
+        let Some((wi, _)) = self.direction_to(next) else {
+            return SampledSpectrum::ZERO;
+        };
+        match self.kind {
+            VertexKind::Surface => {
+                let bsdf = scene.bsdf(&self.si);
+                let f = bsdf.eval(self.si.frame.to_local(self.si.wo), self.si.frame.to_local(wi), lambda, mode);
+                match mode {
+                    TransportMode::Radiance => f,
+                    TransportMode::Importance => f * self.si.shading_correction(self.si.wo, wi),
+                }
+            }
+            VertexKind::Light => match self.emitter(scene) {
+                Some((_, Light::Area(a))) if !a.two_sided && self.si.ng.dot(wi) <= 0.0 => SampledSpectrum::ZERO,
+                _ => SampledSpectrum::ONE,
+            },
+            VertexKind::Camera | VertexKind::Environment => SampledSpectrum::ZERO,
+        }
+    }
+
+    /// Area density at `next` of the walk through this vertex choosing
+    /// `next`, having arrived from `prev` (pbrt `Vertex::Pdf`). `mode` is the
+    /// transport mode of the walk that would make that choice. A light origin
+    /// gives its emission density (`pdf_light`).
+    pub fn pdf(&self, scene: &Scene, prev: Option<&Vertex>, next: &Vertex, lambda: &SampledWavelengths, mode: TransportMode) -> f32 {
+        let Some((wn, _)) = self.direction_to(next) else {
+            return 0.0;
+        };
+        let pdf_w = match self.kind {
+            VertexKind::Light | VertexKind::Environment => return self.pdf_light(scene, next),
+            VertexKind::Camera => scene.camera.pdf_we_dir(wn),
+            VertexKind::Surface => {
+                let Some((wp, _)) = prev.and_then(|prev| self.direction_to(prev)) else {
+                    return 0.0;
+                };
+                let f = &self.si.frame;
+                scene.bsdf(&self.si).pdf(f.to_local(wp), f.to_local(wn), lambda, mode)
+            }
+        };
+        self.convert_density(pdf_w, next)
+    }
+
+    /// This vertex as an emitter: area density at `next` of a light subpath
+    /// starting here choosing `next` (pbrt `PdfLight`): `pdf_dir` / d^2 x
+    /// |cos at next|, or the planar density 1 / (pi R^2) x |cos| for the
+    /// environment.
+    pub fn pdf_light(&self, scene: &Scene, next: &Vertex) -> f32 {
+        let Some((_, light)) = self.emitter(scene) else {
+            return 0.0;
+        };
+        let Some((w, _)) = self.direction_to(next) else {
+            return 0.0;
+        };
+        let (pdf_pos, pdf_dir) = light.pdf_le(self.si.ng, w);
+        let pdf = if self.is_infinite() { pdf_pos } else { pdf_dir };
+        self.convert_density(pdf, next)
+    }
+
+    /// This vertex as an emitter: density of a light subpath starting here
+    /// (pbrt `PdfLightOrigin`): light-choice pmf x area density of the point,
+    /// or for the environment pmf x solid-angle density of its direction.
+    pub fn pdf_light_origin(&self, scene: &Scene, next: &Vertex) -> f32 {
+        let Some((i, light)) = self.emitter(scene) else {
+            return 0.0;
+        };
+        let pmf = scene.light_pmf(i);
+        if self.is_infinite() {
+            return pmf * light.pdf_li(next.p(), self.p(), Vec3A::ZERO);
+        }
+        let Some((w, _)) = self.direction_to(next) else {
+            return 0.0;
+        };
+        pmf * light.pdf_le(self.si.ng, w).0
+    }
+
+    /// Radiance this vertex emits towards `toward` (zero if it emits nothing).
+    pub fn le(&self, scene: &Scene, toward: &Vertex, lambda: &SampledWavelengths) -> SampledSpectrum {
+        let Some((_, light)) = self.emitter(scene) else {
+            return SampledSpectrum::ZERO;
+        };
+        match light {
+            Light::Environment(_) => light.environment_le(lambda),
+            Light::Area(a) => match self.direction_to(toward) {
+                Some((w, _)) => Light::area_le(a, self.si.ng, w, lambda),
+                None => SampledSpectrum::ZERO,
+            },
+            Light::Point(_) => SampledSpectrum::ZERO,
+        }
+    }
+}
+
+/// Generates a camera subpath through raster position `raster` into `path`
+/// (cleared first): the pinhole, then up to `max_depth` + 1 vertices found
+/// by a radiance-mode random walk; a ray that escapes ends on an
+/// `Environment` vertex if the scene has one (pbrt-v3
+/// `GenerateCameraSubpath`).
+pub fn camera_subpath(
+    scene: &Scene,
+    raster: Vec2,
+    sampler: &mut Sampler,
+    lambda: &mut SampledWavelengths,
+    max_depth: u32,
+    path: &mut Vec<Vertex>,
+) {
+    path.clear();
+    let ray = scene.camera.generate_ray(raster);
+    // beta = We cos / (pdf_pos pdf_dir) = 1 for a pixel's box filter (camera.rs).
+    path.push(Vertex::camera(scene, SampledSpectrum::ONE));
+    let pdf_dir = scene.camera.pdf_we_dir(ray.d);
+    random_walk(scene, ray, SampledSpectrum::ONE, pdf_dir, sampler, lambda, TransportMode::Radiance, max_depth as usize + 2, path);
+}
+
+/// Generates a light subpath into `path` (cleared first): a light chosen by
+/// power, an emitted ray from `sample_le`, then an importance-mode random
+/// walk, up to `max_depth` + 1 vertices (pbrt-v3 `GenerateLightSubpath`).
+/// Leaves `path` empty if the scene has no light or emission fails.
+pub fn light_subpath(scene: &Scene, sampler: &mut Sampler, lambda: &mut SampledWavelengths, max_depth: u32, path: &mut Vec<Vertex>) {
+    path.clear();
+    let u_light = sampler.get1d();
+    let (u1, u2) = (sampler.get2d(), sampler.get2d());
+    let Some((i, pmf)) = scene.sample_light(u_light) else {
+        return;
+    };
+    let light = &scene.lights[i as usize];
+    let Some(le) = light.sample_le(u1, u2, lambda) else {
+        return;
+    };
+    if le.pdf_pos == 0.0 || le.pdf_dir == 0.0 || le.l.is_black() {
+        return;
+    }
+    let (origin, beta, pdf_walk) = if light.is_infinite() {
+        // The origin is the direction (solid angle, pmf pdf_dir); the point
+        // on the disk is the "direction" of the first step (planar pdf_pos).
+        let v = Vertex::environment(i, le.ray.o, le.ray.d, le.l / (pmf * le.pdf_dir), pmf * le.pdf_dir);
+        (v, v.beta / le.pdf_pos, le.pdf_pos)
+    } else {
+        let n = if light.is_delta_position() { Vec3A::ZERO } else { le.n };
+        let v = Vertex::light(i, le.ray.o, n, le.l / (pmf * le.pdf_pos), pmf * le.pdf_pos);
+        let cos = if n == Vec3A::ZERO { 1.0 } else { n.dot(le.ray.d).abs() };
+        (v, v.beta * (cos / le.pdf_dir), le.pdf_dir)
+    };
+    path.push(origin);
+    random_walk(scene, le.ray, beta, pdf_walk, sampler, lambda, TransportMode::Importance, max_depth as usize + 1, path);
+}
+
+/// Extends `path` (holding the subpath's endpoint) by tracing `ray` and
+/// sampling BSDFs (pbrt-v3 `RandomWalk`) until `max_vertices`, a miss,
+/// absorption or roulette. `beta` is the throughput the ray carries and
+/// `pdf` the density (solid angle; planar from the environment) with which
+/// its direction was chosen.
+#[allow(clippy::too_many_arguments)]
+fn random_walk(
+    scene: &Scene,
+    mut ray: Ray,
+    mut beta: SampledSpectrum,
+    mut pdf: f32,
+    sampler: &mut Sampler,
+    lambda: &mut SampledWavelengths,
+    mode: TransportMode,
+    max_vertices: usize,
+    path: &mut Vec<Vertex>,
+) {
+    let beta0 = beta.max_component();
+    if !(beta0 > 0.0) || !beta0.is_finite() {
+        return;
+    }
+    let mut eta_scale = 1.0;
+    for depth in 0.. {
+        if path.len() >= max_vertices {
+            return;
+        }
+        let prev = *path.last().expect("a walk starts at an endpoint");
+        let Some(si) = scene.intersect(&ray) else {
+            // Only radiance (camera) walks can end on the environment:
+            // a light walk that escapes carries importance to nothing.
+            if let (TransportMode::Radiance, Some((i, _))) = (mode, scene.environment()) {
+                let far = ray.o + ray.d * (2.0 * scene.radius);
+                let mut v = Vertex::environment(i, far, -ray.d, beta, 0.0);
+                v.pdf_fwd = prev.convert_density(pdf, &v);
+                path.push(v);
+            }
+            return;
+        };
+        let mut v = Vertex::new(VertexKind::Surface, si, beta, 0.0);
+        v.pdf_fwd = prev.convert_density(pdf, &v);
+        path.push(v);
+        // Fetch the BSDF now, even if the walk stops here: connections will
+        // evaluate it, and a dispersive one must end the secondaries first.
+        let bsdf = scene.bsdf_at(&si, lambda);
+        if path.len() >= max_vertices {
+            return;
+        }
+        let wo = si.frame.to_local(si.wo);
+        let Some(bs) = bsdf.sample(wo, sampler.get1d(), sampler.get2d(), lambda, mode) else {
+            return;
+        };
+        let wi = si.frame.to_world(bs.wi);
+        beta *= bs.f * (bs.wi.z.abs() / bs.pdf);
+        let mut pdf_rev = bsdf.pdf(bs.wi, wo, lambda, mode.flip());
+        pdf = bs.pdf;
+        if bs.is_specular() {
+            pdf = 0.0;
+            pdf_rev = 0.0;
+        }
+        match mode {
+            TransportMode::Importance => beta *= si.shading_correction(si.wo, wi),
+            TransportMode::Radiance if bs.flags.is_transmission() => eta_scale *= bs.eta * bs.eta,
+            TransportMode::Radiance => {}
+        }
+        let n = path.len();
+        path[n - 1].delta = bs.is_specular();
+        path[n - 2].pdf_rev = path[n - 1].convert_density(pdf_rev, &path[n - 2]);
+        // Roulette on the throughput relative to the walk's start.
+        let mut rel = beta / beta0;
+        if beta.is_black() || !russian_roulette(&mut rel, eta_scale, depth, sampler.get1d()) {
+            return;
+        }
+        beta = rel * beta0;
+        ray = si.spawn_ray(wi);
+    }
+}
+
+/// The t = 1 strategy: vertex `v` of a light subpath seen by the pinhole
+/// (Veach §10.2; pbrt-v3 `ConnectBDPT` t == 1). Returns the splat
+/// beta f |cos_v| We / pdf (`Camera::sample_wi`; f in importance mode with
+/// the shading correction, |cos| with the shading normal) and the camera
+/// vertex made, or None if `v` cannot connect, projects outside the image,
+/// carries nothing or is occluded.
+pub fn connect_to_camera(scene: &Scene, v: &Vertex, lambda: &SampledWavelengths) -> Option<(Splat, Vertex)> {
+    if v.is_infinite() || !v.is_connectible(scene) {
+        return None;
+    }
+    let cs: CameraWiSample = scene.camera.sample_wi(v.p())?;
+    if !(cs.pdf_w > 0.0) || cs.we == 0.0 {
+        return None;
+    }
+    let camera = Vertex::camera(scene, SampledSpectrum::splat(cs.we / cs.pdf_w));
+    let cos = if v.is_on_surface() { cs.wi.dot(v.si.frame.n).abs() } else { 1.0 };
+    let l = v.beta * v.f(scene, &camera, lambda, TransportMode::Importance) * camera.beta * cos;
+    if l.is_black() || !scene.unoccluded(v.p(), v.si.ng, camera.p(), Vec3A::ZERO) {
+        return None;
+    }
+    Some((Splat { raster: cs.raster, l }, camera))
+}
+
+/// Delta lights seen only through smooth specular surfaces (S-D-S paths with
+/// a delta light and a pinhole) cannot be sampled by any of prism's
+/// estimators (Veach 1997 §8.3.2). This returns a warning per point light in
+/// a scene that has smooth specular materials.
+pub fn specular_chains_to_point_lights(scene: &Scene) -> Vec<String> {
+    let specular: Vec<&str> = scene
+        .materials
+        .iter()
+        .filter(|m| m.bsdf.flags().is_specular() && !m.bsdf.flags().is_non_specular())
+        .map(|m| m.name.as_str())
+        .collect();
+    if specular.is_empty() {
+        return Vec::new();
+    }
+    scene
+        .lights
+        .iter()
+        .zip(&scene.light_names)
+        .filter(|(l, _)| l.is_delta_position())
+        .map(|(_, name)| {
+            format!(
+                "point light \"{name}\" seen via the smooth specular material(s) {} then a diffuse surface and specular again (S-D-S) cannot be sampled by any estimator with a pinhole camera; such caustics will be missing",
+                specular.join(", ")
+            )
+        })
+        .collect()
+}

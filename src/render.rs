@@ -1,0 +1,351 @@
+//! The parallel driver: tiles over rayon, a progress bar, deterministic
+//! seeding and a deterministic merge.
+//!
+//! Determinism: every sample (pixel, index) draws from its own stream seeded
+//! by (seed, pixel, index); a tile sums its pixels' samples in index order;
+//! tiles are processed in fixed-size batches whose results are merged in tile
+//! order (splats included). No result depends on which thread ran what, so
+//! the same scene, seed and spp give bit-identical images at any thread count.
+//!
+//! Per-strategy images (`render_with_strategies`, BDPT's `--strategies`):
+//! the integrator appends a small `StrategyRecord` per strategy to the
+//! workspace; the tile sums the t >= 2 ones into per-(s, t) buffers for its
+//! own pixels and keeps the t = 1 ones as splats, both in sample order, and
+//! the batch merge adds them in tile order like the film: still
+//! deterministic. Without it the workspace holds no record list and the
+//! integrator's check costs one branch.
+
+use crate::film::{write_exr, DroppedSamples, Film};
+use crate::integrators::Integrator;
+use crate::sampling::Sampler;
+use crate::scene::Scene;
+use crate::spectrum::{SampledSpectrum, SampledWavelengths};
+use glam::{UVec2, Vec2};
+use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
+use std::collections::BTreeMap;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+const TILE: u32 = 16;
+/// Tiles per merge batch: bounds the memory held by pending splats.
+const BATCH: usize = 64;
+
+/// A contribution to the pixel that contains `raster` (box filter), from any
+/// sample of the image (light tracing, BDPT's t = 1 strategy).
+#[derive(Clone, Copy, Debug)]
+pub struct Splat {
+    pub raster: Vec2,
+    pub l: SampledSpectrum,
+}
+
+/// Per-worker scratch memory, reused from sample to sample so the hot loop
+/// does not allocate.
+#[derive(Default)]
+pub struct Workspace {
+    /// Splats of the current sample, converted to colour when it finishes
+    /// (with its final wavelengths, in case a dispersive event terminated the
+    /// secondaries after the splat was made).
+    pub splats: Vec<Splat>,
+    pub paths: crate::path::PathScratch,
+    /// Per-strategy records of the current sample; `Some` only when
+    /// per-strategy images are being made (`render_with_strategies`).
+    pub strategies: Option<Vec<StrategyRecord>>,
+}
+
+/// One connection strategy's contribution to a sample of a bidirectional
+/// estimator: `weighted` is what went into the image (times the MIS weight),
+/// `unweighted` the strategy's contribution alone. A t >= 2 record belongs to
+/// the sample's pixel; a t = 1 record is a splat at `raster`.
+#[derive(Clone, Copy, Debug)]
+pub struct StrategyRecord {
+    pub s: u32,
+    pub t: u32,
+    pub raster: Vec2,
+    pub weighted: SampledSpectrum,
+    pub unweighted: SampledSpectrum,
+}
+
+/// Sums of weighted and unweighted contributions per pixel, for every
+/// strategy (s, t) that contributed (linear sRGB, like `Film`).
+pub struct StrategyImages {
+    pub width: u32,
+    pub height: u32,
+    /// Samples per pixel accumulated so far.
+    pub spp: u64,
+    /// (s, t) -> [weighted, unweighted] sums per pixel.
+    pub sums: BTreeMap<(u32, u32), [Vec<[f64; 3]>; 2]>,
+    /// Records kept out (NaN, infinite, negative), counted apart from the film's.
+    pub dropped: DroppedSamples,
+}
+
+impl StrategyImages {
+    pub fn new(width: u32, height: u32) -> Self {
+        Self { width, height, spp: 0, sums: BTreeMap::new(), dropped: DroppedSamples::default() }
+    }
+
+    fn buffers(&mut self, s: u32, t: u32) -> &mut [Vec<[f64; 3]>; 2] {
+        let n = (self.width * self.height) as usize;
+        self.sums.entry((s, t)).or_insert_with(|| [vec![[0.0; 3]; n], vec![[0.0; 3]; n]])
+    }
+
+    /// The image of strategy (s, t), weighted (its share of the final image)
+    /// or unweighted (its own estimate of the paths it can make), divided by
+    /// spp as `Film::image` does.
+    pub fn image(&self, s: u32, t: u32, weighted: bool) -> Option<Vec<[f32; 3]>> {
+        let inv = if self.spp == 0 { 0.0 } else { 1.0 / self.spp as f64 };
+        let b = &self.sums.get(&(s, t))?[if weighted { 0 } else { 1 }];
+        Some(b.iter().map(|p| p.map(|c| (c * inv) as f32)).collect())
+    }
+
+    /// Writes `s<s>_t<t>_weighted.exr` and `s<s>_t<t>_unweighted.exr` for
+    /// every strategy into `dir`; returns the files written.
+    pub fn write_exrs(&self, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
+        let mut written = Vec::new();
+        for &(s, t) in self.sums.keys() {
+            for (weighted, name) in [(true, "weighted"), (false, "unweighted")] {
+                let path = dir.join(format!("s{s}_t{t}_{name}.exr"));
+                let image = self.image(s, t, weighted).expect("strategy present");
+                write_exr(&path, self.width, self.height, &image)?;
+                written.push(path);
+            }
+        }
+        Ok(written)
+    }
+}
+
+/// A tile's strategy records: per-(s, t) sums over its own pixels (t >= 2)
+/// and splats (t = 1: pixel index, s, t, [weighted, unweighted]).
+#[derive(Default)]
+struct TileStrategies {
+    pixels: BTreeMap<(u32, u32), Vec<[[f64; 3]; 2]>>,
+    splats: Vec<(u32, u32, u32, [[f64; 3]; 2])>,
+    dropped: DroppedSamples,
+}
+
+#[derive(Clone, Debug)]
+pub struct RenderOptions {
+    pub seed: u64,
+    /// Worker threads; 0 = one per core.
+    pub threads: usize,
+    pub progress: bool,
+}
+
+#[derive(Clone, Debug, Default)]
+pub struct RenderStats {
+    pub wall: Duration,
+    pub samples: u64,
+    pub rays: u64,
+}
+
+struct TileOutput {
+    origin: UVec2,
+    size: UVec2,
+    sums: Vec<[f64; 3]>,
+    splats: Vec<(u32, [f64; 3])>,
+    dropped: DroppedSamples,
+    rays: u64,
+    strategies: Option<TileStrategies>,
+}
+
+/// Adds samples `samples` (indices) of every pixel to the film.
+pub fn render(scene: &Scene, integrator: &dyn Integrator, opts: &RenderOptions, film: &mut Film, samples: Range<u32>) -> RenderStats {
+    render_impl(scene, integrator, opts, film, samples, None)
+}
+
+/// `render`, also adding each connection strategy's contribution to
+/// `strategies` (for integrators that record them: BDPT). The film gets
+/// exactly what `render` would give it.
+pub fn render_with_strategies(
+    scene: &Scene,
+    integrator: &dyn Integrator,
+    opts: &RenderOptions,
+    film: &mut Film,
+    samples: Range<u32>,
+    strategies: &mut StrategyImages,
+) -> RenderStats {
+    assert_eq!((strategies.width, strategies.height), (film.width, film.height), "strategy images and film differ in size");
+    render_impl(scene, integrator, opts, film, samples, Some(strategies))
+}
+
+fn render_impl(
+    scene: &Scene,
+    integrator: &dyn Integrator,
+    opts: &RenderOptions,
+    film: &mut Film,
+    samples: Range<u32>,
+    mut strategies: Option<&mut StrategyImages>,
+) -> RenderStats {
+    let record = strategies.is_some();
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(opts.threads).build().expect("thread pool");
+    let start = Instant::now();
+    let (w, h) = (film.width, film.height);
+    let tiles: Vec<(UVec2, UVec2)> = (0..h.div_ceil(TILE))
+        .flat_map(|ty| (0..w.div_ceil(TILE)).map(move |tx| (tx, ty)))
+        .map(|(tx, ty)| {
+            let o = UVec2::new(tx * TILE, ty * TILE);
+            (o, UVec2::new(TILE.min(w - o.x), TILE.min(h - o.y)))
+        })
+        .collect();
+    let bar = progress_bar(opts.progress, tiles.len() as u64);
+    let mut rays = 0;
+    pool.install(|| {
+        for batch in tiles.chunks(BATCH) {
+            let outputs: Vec<TileOutput> = batch
+                .par_iter()
+                .map_init(Workspace::default, |ws, &(origin, size)| {
+                    if record && ws.strategies.is_none() {
+                        ws.strategies = Some(Vec::new());
+                    }
+                    let out = render_tile(scene, integrator, opts.seed, ws, film.width, origin, size, samples.clone());
+                    bar.inc(1);
+                    out
+                })
+                .collect();
+            for mut out in outputs {
+                rays += out.rays;
+                if let (Some(images), Some(tile)) = (strategies.as_deref_mut(), out.strategies.take()) {
+                    merge_tile_strategies(images, &out, tile);
+                }
+                merge_tile(film, out);
+            }
+        }
+    });
+    bar.finish_and_clear();
+    film.spp += samples.len() as u64;
+    if let Some(images) = strategies {
+        images.spp += samples.len() as u64;
+    }
+    RenderStats { wall: start.elapsed(), samples: samples.len() as u64 * w as u64 * h as u64, rays }
+}
+
+fn progress_bar(visible: bool, len: u64) -> ProgressBar {
+    if !visible {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(len);
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} tiles (eta {eta})")
+            .expect("progress template"),
+    );
+    bar
+}
+
+#[allow(clippy::too_many_arguments)]
+fn render_tile(
+    scene: &Scene,
+    integrator: &dyn Integrator,
+    seed: u64,
+    ws: &mut Workspace,
+    width: u32,
+    origin: UVec2,
+    size: UVec2,
+    samples: Range<u32>,
+) -> TileOutput {
+    let mut out = TileOutput {
+        origin,
+        size,
+        sums: vec![[0.0; 3]; (size.x * size.y) as usize],
+        splats: Vec::new(),
+        dropped: DroppedSamples::default(),
+        rays: 0,
+        strategies: ws.strategies.is_some().then(TileStrategies::default),
+    };
+    crate::scene::take_ray_count();
+    for y in 0..size.y {
+        for x in 0..size.x {
+            let pixel = origin + UVec2::new(x, y);
+            let pixel_index = (pixel.y * width + pixel.x) as u64;
+            let sum = &mut out.sums[(y * size.x + x) as usize];
+            for s in samples.clone() {
+                let mut sampler = Sampler::new(seed, pixel_index, s as u64);
+                let mut lambda = SampledWavelengths::sample_visible(sampler.get1d());
+                ws.splats.clear();
+                if let Some(records) = ws.strategies.as_mut() {
+                    records.clear();
+                }
+                let l = integrator.sample(scene, pixel, &mut sampler, &mut lambda, ws);
+                if let Some(rgb) = out.dropped.admit(l, &lambda) {
+                    for c in 0..3 {
+                        sum[c] += rgb[c] as f64;
+                    }
+                }
+                for sp in &ws.splats {
+                    if let Some(rgb) = out.dropped.admit(sp.l, &lambda) {
+                        let p = sp.raster.as_uvec2().min(UVec2::new(width - 1, scene.camera.height - 1));
+                        out.splats.push((p.y * width + p.x, rgb.to_array().map(f64::from)));
+                    }
+                }
+                if let (Some(tile), Some(records)) = (out.strategies.as_mut(), ws.strategies.as_ref()) {
+                    let local = (y * size.x + x) as usize;
+                    let n = (size.x * size.y) as usize;
+                    for r in records {
+                        let (Some(w), Some(u)) = (tile.dropped.admit(r.weighted, &lambda), tile.dropped.admit(r.unweighted, &lambda)) else {
+                            continue;
+                        };
+                        let rgb = [w, u].map(|c| c.to_array().map(f64::from));
+                        if r.t == 1 {
+                            let p = r.raster.as_uvec2().min(UVec2::new(width - 1, scene.camera.height - 1));
+                            tile.splats.push((p.y * width + p.x, r.s, r.t, rgb));
+                        } else {
+                            let sums = tile.pixels.entry((r.s, r.t)).or_insert_with(|| vec![[[0.0; 3]; 2]; n]);
+                            for k in 0..2 {
+                                for c in 0..3 {
+                                    sums[local][k][c] += rgb[k][c];
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    out.rays = crate::scene::take_ray_count();
+    out
+}
+
+fn merge_tile_strategies(images: &mut StrategyImages, out: &TileOutput, tile: TileStrategies) {
+    let width = images.width;
+    for ((s, t), sums) in tile.pixels {
+        let buffers = images.buffers(s, t);
+        for y in 0..out.size.y {
+            for x in 0..out.size.x {
+                let i = ((out.origin.y + y) * width + out.origin.x + x) as usize;
+                let v = sums[(y * out.size.x + x) as usize];
+                for k in 0..2 {
+                    for c in 0..3 {
+                        buffers[k][i][c] += v[k][c];
+                    }
+                }
+            }
+        }
+    }
+    for (i, s, t, v) in tile.splats {
+        let buffers = images.buffers(s, t);
+        for k in 0..2 {
+            for c in 0..3 {
+                buffers[k][i as usize][c] += v[k][c];
+            }
+        }
+    }
+    images.dropped.merge(&tile.dropped);
+}
+
+fn merge_tile(film: &mut Film, out: TileOutput) {
+    for y in 0..out.size.y {
+        for x in 0..out.size.x {
+            let i = ((out.origin.y + y) * film.width + out.origin.x + x) as usize;
+            let s = out.sums[(y * out.size.x + x) as usize];
+            for c in 0..3 {
+                film.pixels[i][c] += s[c];
+            }
+        }
+    }
+    for (i, rgb) in out.splats {
+        for c in 0..3 {
+            film.splats[i as usize][c] += rgb[c];
+        }
+    }
+    film.dropped.merge(&out.dropped);
+}

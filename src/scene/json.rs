@@ -1,0 +1,678 @@
+//! The JSON scene loader (format: docs/scene-format.md).
+//!
+//! Parsing is two-staged: serde reads the file into the `*Spec` types below
+//! (`deny_unknown_fields`, so a misspelt parameter is an error, as in
+//! Mitsuba), then `resolve` turns names into spectra, materials and meshes.
+//! Every error names the file, line, column and field path:
+//! `scenes/x.json:14:9: materials.glass.ior: unknown glass "BK8" (known: ...)`.
+
+use super::locate::{locate, path_string, Seg};
+use super::{SceneBuilder, RenderDefaults};
+use crate::camera::Camera;
+use crate::materials::{Bsdf, Diffuse};
+use crate::shapes::Mesh;
+use crate::spectrum::{self, Spectrum};
+use glam::{Affine3A, Quat, Vec3, Vec3A};
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+/// A scene file that could not be read or understood.
+#[derive(Debug)]
+pub struct LoadError {
+    pub file: String,
+    /// 1-based line and column, when known.
+    pub position: Option<(usize, usize)>,
+    /// Field path such as `objects[2].material`, when known.
+    pub field: String,
+    pub message: String,
+}
+
+impl fmt::Display for LoadError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.file)?;
+        if let Some((l, c)) = self.position {
+            write!(f, ":{l}:{c}")?;
+        }
+        if !self.field.is_empty() {
+            write!(f, ": {}", self.field)?;
+        }
+        write!(f, ": {}", self.message)
+    }
+}
+
+impl std::error::Error for LoadError {}
+
+// ---------------------------------------------------------------- file format
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneFile {
+    #[serde(default)]
+    #[allow(dead_code)]
+    comment: Option<String>,
+    camera: CameraSpec,
+    #[serde(default)]
+    spectra: BTreeMap<String, SpectrumSpec>,
+    #[serde(default)]
+    materials: BTreeMap<String, MaterialSpec>,
+    #[serde(default)]
+    objects: Vec<ObjectSpec>,
+    #[serde(default)]
+    lights: Vec<LightSpec>,
+    #[serde(default)]
+    render: RenderSpec,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CameraSpec {
+    position: [f32; 3],
+    look_at: [f32; 3],
+    #[serde(default = "default_up")]
+    up: [f32; 3],
+    /// Full vertical field of view in degrees.
+    fov: f32,
+    width: u32,
+    height: u32,
+}
+
+fn default_up() -> [f32; 3] {
+    [0.0, 1.0, 0.0]
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RenderSpec {
+    spp: Option<u32>,
+    max_depth: Option<u32>,
+    integrator: Option<String>,
+    seed: Option<u64>,
+}
+
+#[derive(Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+enum MaterialSpec {
+    Diffuse(DiffuseSpec),
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DiffuseSpec {
+    #[serde(default = "half")]
+    reflectance: SpectrumSpec,
+}
+
+fn half() -> SpectrumSpec {
+    SpectrumSpec::Constant(0.5)
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ObjectSpec {
+    #[serde(default)]
+    name: Option<String>,
+    #[serde(default)]
+    #[allow(dead_code)]
+    comment: Option<String>,
+    shape: ShapeSpec,
+    material: String,
+    #[serde(default)]
+    emission: Option<SpectrumSpec>,
+    #[serde(default)]
+    two_sided: bool,
+    #[serde(default)]
+    transform: Option<TransformSpec>,
+}
+
+#[derive(Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+enum ShapeSpec {
+    Quad(QuadSpec),
+    Cuboid(CuboidSpec),
+    Sphere(SphereSpec),
+    Mesh(InlineMeshSpec),
+    Obj(ObjSpec),
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct QuadSpec {
+    corners: [[f32; 3]; 4],
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CuboidSpec {
+    min: [f32; 3],
+    max: [f32; 3],
+    /// Wind inward (normals point inside), for a room seen from inside.
+    #[serde(default)]
+    inward: bool,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SphereSpec {
+    center: [f32; 3],
+    radius: f32,
+    #[serde(default = "default_subdivisions")]
+    subdivisions: u32,
+    #[serde(default)]
+    smooth: bool,
+    /// Wind inward (normals point to the centre), for a sphere seen from inside.
+    #[serde(default)]
+    inward: bool,
+}
+
+fn default_subdivisions() -> u32 {
+    4
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct InlineMeshSpec {
+    positions: Vec<[f32; 3]>,
+    indices: Vec<[u32; 3]>,
+    #[serde(default)]
+    normals: Vec<[f32; 3]>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ObjSpec {
+    /// Relative to the scene file.
+    file: String,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TransformSpec {
+    #[serde(default)]
+    scale: Option<ScaleSpec>,
+    #[serde(default)]
+    rotate: Option<RotateSpec>,
+    #[serde(default)]
+    translate: Option<[f32; 3]>,
+}
+
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum ScaleSpec {
+    Uniform(f32),
+    PerAxis([f32; 3]),
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RotateSpec {
+    axis: [f32; 3],
+    degrees: f32,
+}
+
+#[derive(Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+enum LightSpec {
+    Point(PointSpec),
+    Environment(EnvironmentSpec),
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PointSpec {
+    #[serde(default)]
+    name: Option<String>,
+    position: [f32; 3],
+    intensity: SpectrumSpec,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct EnvironmentSpec {
+    #[serde(default)]
+    name: Option<String>,
+    radiance: SpectrumSpec,
+}
+
+/// How a scene writes a spectrum: a number (constant), a name (an entry of
+/// `spectra`, or a built-in illuminant / glass), or an object with one of
+/// `rgb`, `blackbody`, `wavelengths`+`values`, `sellmeier`, `cauchy`, and an
+/// optional `scale`.
+#[derive(Clone, Debug)]
+enum SpectrumSpec {
+    Constant(f32),
+    Name(String),
+    Rgb([f32; 3], f32),
+    Blackbody(f32, f32),
+    Tabulated(Vec<f32>, Vec<f32>, f32),
+    Sellmeier([f32; 3], [f32; 3]),
+    Cauchy(f32, f32),
+}
+
+const SPECTRUM_FORMS: &str =
+    "expected a number, a spectrum name, or an object with one of \"rgb\", \"blackbody\", \"wavelengths\"+\"values\", \"sellmeier\", \"cauchy\"";
+
+impl<'de> Deserialize<'de> for SpectrumSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        use serde::de::Error;
+        let v = serde_json::Value::deserialize(d)?;
+        spectrum_from_value(&v).map_err(D::Error::custom)
+    }
+}
+
+fn spectrum_from_value(v: &serde_json::Value) -> Result<SpectrumSpec, String> {
+    use serde_json::Value;
+    let num = |v: &Value, what: &str| v.as_f64().map(|x| x as f32).ok_or_else(|| format!("\"{what}\" must be a number"));
+    let arr = |v: &Value, what: &str| -> Result<Vec<f32>, String> {
+        v.as_array()
+            .and_then(|a| a.iter().map(|x| x.as_f64().map(|x| x as f32)).collect::<Option<Vec<f32>>>())
+            .ok_or_else(|| format!("\"{what}\" must be an array of numbers"))
+    };
+    let arr3 = |v: &Value, what: &str| -> Result<[f32; 3], String> {
+        let a = arr(v, what)?;
+        a.try_into().map_err(|_| format!("\"{what}\" must have 3 numbers"))
+    };
+    match v {
+        Value::Number(n) => Ok(SpectrumSpec::Constant(n.as_f64().unwrap_or(f64::NAN) as f32)),
+        Value::String(s) => Ok(SpectrumSpec::Name(s.clone())),
+        Value::Object(o) => {
+            let scale = o.get("scale").map(|s| num(s, "scale")).transpose()?.unwrap_or(1.0);
+            let allowed: &[&str] = if o.contains_key("rgb") {
+                &["rgb", "scale"]
+            } else if o.contains_key("blackbody") {
+                &["blackbody", "scale"]
+            } else if o.contains_key("wavelengths") {
+                &["wavelengths", "values", "scale"]
+            } else if o.contains_key("sellmeier") {
+                &["sellmeier"]
+            } else if o.contains_key("cauchy") {
+                &["cauchy"]
+            } else {
+                return Err(SPECTRUM_FORMS.to_string());
+            };
+            if let Some(k) = o.keys().find(|k| !allowed.contains(&k.as_str())) {
+                return Err(format!("unknown field \"{k}\" (expected {})", allowed.join(", ")));
+            }
+            if let Some(v) = o.get("rgb") {
+                return Ok(SpectrumSpec::Rgb(arr3(v, "rgb")?, scale));
+            }
+            if let Some(v) = o.get("blackbody") {
+                return Ok(SpectrumSpec::Blackbody(num(v, "blackbody")?, scale));
+            }
+            if let Some(v) = o.get("wavelengths") {
+                let w = arr(v, "wavelengths")?;
+                let vals = arr(o.get("values").ok_or("\"wavelengths\" needs \"values\"")?, "values")?;
+                return Ok(SpectrumSpec::Tabulated(w, vals, scale));
+            }
+            let coeffs = |v: &Value, a: &str, b: &str| -> Result<(Value, Value), String> {
+                let o = v.as_object().ok_or_else(|| format!("expected an object with \"{a}\" and \"{b}\""))?;
+                if let Some(k) = o.keys().find(|k| *k != a && *k != b) {
+                    return Err(format!("unknown field \"{k}\" (expected {a}, {b})"));
+                }
+                let get = |k: &str| o.get(k).cloned().ok_or_else(|| format!("missing \"{k}\""));
+                Ok((get(a)?, get(b)?))
+            };
+            if let Some(v) = o.get("sellmeier") {
+                let (b, c) = coeffs(v, "b", "c")?;
+                return Ok(SpectrumSpec::Sellmeier(arr3(&b, "b")?, arr3(&c, "c")?));
+            }
+            let (a, b) = coeffs(&o["cauchy"], "a", "b")?;
+            Ok(SpectrumSpec::Cauchy(num(&a, "a")?, num(&b, "b")?))
+        }
+        _ => Err(SPECTRUM_FORMS.to_string()),
+    }
+}
+
+// ------------------------------------------------------------------ resolving
+
+/// What a spectrum is used as: decides how RGB is upsampled and which
+/// built-in names apply.
+#[derive(Clone, Copy, PartialEq)]
+enum Use {
+    Reflectance,
+    Emission,
+    Ior,
+}
+
+struct Ctx<'a> {
+    file: &'a str,
+    text: &'a str,
+    dir: &'a Path,
+    spectra: &'a BTreeMap<String, SpectrumSpec>,
+}
+
+impl Ctx<'_> {
+    fn err(&self, path: &[Seg], message: impl Into<String>) -> LoadError {
+        LoadError {
+            file: self.file.to_string(),
+            position: Some(locate(self.text, path)),
+            field: path_string(path),
+            message: message.into(),
+        }
+    }
+
+    fn finite(&self, path: &[Seg], values: &[f32]) -> Result<(), LoadError> {
+        if values.iter().all(|v| v.is_finite()) {
+            Ok(())
+        } else {
+            Err(self.err(path, "numbers must be finite"))
+        }
+    }
+
+    fn vec3(&self, path: &[Seg], v: [f32; 3]) -> Result<Vec3A, LoadError> {
+        self.finite(path, &v)?;
+        Ok(Vec3A::from_array(v))
+    }
+
+    fn spectrum(&self, path: &[Seg], spec: &SpectrumSpec, usage: Use) -> Result<Spectrum, LoadError> {
+        self.spectrum_depth(path, spec, usage, 0)
+    }
+
+    fn spectrum_depth(&self, path: &[Seg], spec: &SpectrumSpec, usage: Use, depth: u32) -> Result<Spectrum, LoadError> {
+        let positive = |x: f32, what: &str| {
+            if x.is_finite() && x >= 0.0 {
+                Ok(x)
+            } else {
+                Err(self.err(path, format!("{what} must be a finite number >= 0, got {x}")))
+            }
+        };
+        let s = match spec {
+            SpectrumSpec::Constant(c) => Spectrum::Constant(positive(*c, "a spectrum value")?),
+            SpectrumSpec::Name(name) => {
+                if let Some(s) = self.spectra.get(name) {
+                    if depth > 8 {
+                        return Err(self.err(path, format!("spectrum \"{name}\" refers to itself")));
+                    }
+                    return self.spectrum_depth(path, s, usage, depth + 1);
+                }
+                let builtin = match usage {
+                    Use::Ior => spectrum::glass_ior(name).or_else(|| spectrum::illuminant(name)),
+                    _ => spectrum::illuminant(name),
+                };
+                builtin.ok_or_else(|| {
+                    let mut known: Vec<String> = self.spectra.keys().cloned().collect();
+                    known.extend(spectrum::ILLUMINANT_NAMES.iter().map(|s| s.to_string()));
+                    if usage == Use::Ior {
+                        known.extend(spectrum::GLASS_NAMES.iter().map(|s| s.to_string()));
+                    }
+                    self.err(path, format!("unknown spectrum \"{name}\" (known: {})", known.join(", ")))
+                })?
+            }
+            SpectrumSpec::Rgb(rgb, scale) => {
+                self.finite(path, rgb)?;
+                let scale = positive(*scale, "scale")?;
+                if rgb.iter().any(|&c| c < 0.0) {
+                    return Err(self.err(path, "rgb components must be >= 0"));
+                }
+                match usage {
+                    Use::Emission => spectrum::rgb_illuminant(*rgb).scale(scale),
+                    _ => {
+                        if rgb.iter().any(|&c| c > 1.0) {
+                            return Err(self.err(path, "a reflectance rgb must lie in [0, 1]"));
+                        }
+                        spectrum::rgb_albedo(*rgb).scale(scale)
+                    }
+                }
+            }
+            SpectrumSpec::Blackbody(t, scale) => {
+                if !(t.is_finite() && *t > 0.0) {
+                    return Err(self.err(path, "blackbody temperature must be > 0 kelvin"));
+                }
+                spectrum::blackbody(*t).scale(positive(*scale, "scale")?)
+            }
+            SpectrumSpec::Tabulated(w, v, scale) => {
+                if w.len() != v.len() || w.is_empty() {
+                    return Err(self.err(path, "\"wavelengths\" and \"values\" must be non-empty and of equal length"));
+                }
+                self.finite(path, w)?;
+                self.finite(path, v)?;
+                if w.windows(2).any(|p| p[1] <= p[0]) {
+                    return Err(self.err(path, "\"wavelengths\" must increase strictly"));
+                }
+                if v.iter().any(|&x| x < 0.0) {
+                    return Err(self.err(path, "spectrum values must be >= 0"));
+                }
+                let pts: Vec<(f32, f32)> = w.iter().copied().zip(v.iter().copied()).collect();
+                Spectrum::piecewise_linear(&pts).scale(positive(*scale, "scale")?)
+            }
+            SpectrumSpec::Sellmeier(b, c) => {
+                self.finite(path, b)?;
+                self.finite(path, c)?;
+                spectrum::sellmeier(*b, *c)
+            }
+            SpectrumSpec::Cauchy(a, b) => {
+                self.finite(path, &[*a, *b])?;
+                spectrum::cauchy(*a, *b)
+            }
+        };
+        if usage == Use::Reflectance && s.max_value() > 1.0 {
+            return Err(self.err(path, format!("a reflectance must not exceed 1 (max {})", s.max_value())));
+        }
+        if usage == Use::Ior && s.min_value() <= 0.0 {
+            return Err(self.err(path, "an index of refraction must be > 0"));
+        }
+        Ok(s)
+    }
+
+    fn material(&self, path: &[Seg], spec: &MaterialSpec) -> Result<Bsdf, LoadError> {
+        let at = |k: &str| with(path, k);
+        Ok(match spec {
+            MaterialSpec::Diffuse(d) => {
+                Bsdf::Diffuse(Diffuse::new(self.spectrum(&at("reflectance"), &d.reflectance, Use::Reflectance)?))
+            }
+        })
+    }
+
+    fn shape(&self, path: &[Seg], spec: &ShapeSpec) -> Result<Mesh, LoadError> {
+        let at = |k: &str| with(path, k);
+        let mesh = match spec {
+            ShapeSpec::Quad(q) => {
+                let mut c = [Vec3A::ZERO; 4];
+                for (i, v) in q.corners.iter().enumerate() {
+                    c[i] = self.vec3(&at("corners"), *v)?;
+                }
+                Mesh::quad(c)
+            }
+            ShapeSpec::Cuboid(b) => {
+                let (lo, hi) = (self.vec3(&at("min"), b.min)?, self.vec3(&at("max"), b.max)?);
+                if lo.cmpgt(hi).any() {
+                    return Err(self.err(&at("max"), "every component of max must be >= min"));
+                }
+                let mut m = Mesh::cuboid(lo, hi);
+                if b.inward {
+                    m.flip();
+                }
+                m
+            }
+            ShapeSpec::Sphere(s) => {
+                let c = self.vec3(&at("center"), s.center)?;
+                if !(s.radius.is_finite() && s.radius > 0.0) {
+                    return Err(self.err(&at("radius"), "radius must be a finite number > 0"));
+                }
+                if s.subdivisions > 9 {
+                    return Err(self.err(&at("subdivisions"), "at most 9 subdivisions (5 million triangles)"));
+                }
+                let mut m = Mesh::sphere(c, s.radius, s.subdivisions, s.smooth);
+                if s.inward {
+                    m.flip();
+                }
+                m
+            }
+            ShapeSpec::Mesh(m) => self.inline_mesh(path, m)?,
+            ShapeSpec::Obj(o) => self.obj(&at("file"), &o.file)?,
+        };
+        Ok(mesh)
+    }
+
+    fn inline_mesh(&self, path: &[Seg], m: &InlineMeshSpec) -> Result<Mesh, LoadError> {
+        let positions = m.positions.iter().map(|p| self.vec3(&with(path, "positions"), *p)).collect::<Result<Vec<_>, _>>()?;
+        let normals = m.normals.iter().map(|n| self.vec3(&with(path, "normals"), *n)).collect::<Result<Vec<_>, _>>()?;
+        if !normals.is_empty() && normals.len() != positions.len() {
+            return Err(self.err(&with(path, "normals"), "needs one normal per position"));
+        }
+        if let Some(i) = m.indices.iter().flatten().find(|&&i| i as usize >= positions.len()) {
+            return Err(self.err(&with(path, "indices"), format!("index {i} is out of range ({} positions)", positions.len())));
+        }
+        Ok(Mesh { positions, normals, indices: m.indices.clone() })
+    }
+
+    fn obj(&self, path: &[Seg], file: &str) -> Result<Mesh, LoadError> {
+        let full: PathBuf = self.dir.join(file);
+        let opts = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
+        let (models, _) = tobj::load_obj(&full, &opts).map_err(|e| self.err(path, format!("cannot read mesh {}: {e}", full.display())))?;
+        let mut mesh = Mesh { positions: Vec::new(), normals: Vec::new(), indices: Vec::new() };
+        let with_normals = models.iter().all(|m| !m.mesh.normals.is_empty());
+        for m in &models {
+            let base = mesh.positions.len() as u32;
+            mesh.positions.extend(m.mesh.positions.chunks_exact(3).map(|p| Vec3A::new(p[0], p[1], p[2])));
+            if with_normals {
+                mesh.normals.extend(m.mesh.normals.chunks_exact(3).map(|n| Vec3A::new(n[0], n[1], n[2])));
+            }
+            mesh.indices.extend(m.mesh.indices.chunks_exact(3).map(|t| [t[0] + base, t[1] + base, t[2] + base]));
+        }
+        if mesh.positions.iter().any(|p| !p.is_finite()) {
+            return Err(self.err(path, format!("{}: non-finite vertex position", full.display())));
+        }
+        Ok(mesh)
+    }
+
+    fn transform(&self, path: &[Seg], t: &TransformSpec) -> Result<Affine3A, LoadError> {
+        let scale = match &t.scale {
+            None => Vec3::ONE,
+            Some(ScaleSpec::Uniform(s)) => Vec3::splat(*s),
+            Some(ScaleSpec::PerAxis(s)) => Vec3::from_array(*s),
+        };
+        self.finite(&with(path, "scale"), &scale.to_array())?;
+        if scale.cmpeq(Vec3::ZERO).any() {
+            return Err(self.err(&with(path, "scale"), "scale must not be 0"));
+        }
+        let rotation = match &t.rotate {
+            None => Quat::IDENTITY,
+            Some(r) => {
+                let axis = Vec3::from(self.vec3(&with(path, "rotate"), r.axis)?);
+                self.finite(&with(path, "rotate"), &[r.degrees])?;
+                if axis.length_squared() == 0.0 {
+                    return Err(self.err(&with(path, "rotate"), "rotation axis must not be zero"));
+                }
+                Quat::from_axis_angle(axis.normalize(), r.degrees.to_radians())
+            }
+        };
+        let translation = Vec3::from(self.vec3(&with(path, "translate"), t.translate.unwrap_or([0.0; 3]))?);
+        Ok(Affine3A::from_scale_rotation_translation(scale, rotation, translation))
+    }
+}
+
+fn with(path: &[Seg], key: &str) -> Vec<Seg> {
+    let mut p = path.to_vec();
+    p.push(Seg::Key(key.to_string()));
+    p
+}
+
+fn with_index(path: &[Seg], i: usize) -> Vec<Seg> {
+    let mut p = path.to_vec();
+    p.push(Seg::Index(i));
+    p
+}
+
+/// Reads and builds a scene file; see docs/scene-format.md.
+pub fn load_scene(path: &Path) -> Result<SceneBuilder, LoadError> {
+    let file = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|e| LoadError {
+        file: file.clone(),
+        position: None,
+        field: String::new(),
+        message: format!("cannot read scene file: {e}"),
+    })?;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    parse_scene(&text, &file, dir)
+}
+
+/// Builds a scene from JSON text; `file` names it in errors and `dir`
+/// resolves relative mesh paths.
+pub fn parse_scene(text: &str, file: &str, dir: &Path) -> Result<SceneBuilder, LoadError> {
+    let de = &mut serde_json::Deserializer::from_str(text);
+    let parsed: SceneFile = serde_path_to_error::deserialize(de).map_err(|e| {
+        let field = e.path().to_string();
+        let inner = e.into_inner();
+        let message = strip_position(&inner.to_string());
+        LoadError {
+            file: file.to_string(),
+            position: (inner.line() > 0).then(|| (inner.line(), inner.column())),
+            field: if field == "." { String::new() } else { field },
+            message,
+        }
+    })?;
+    let ctx = Ctx { file, text, dir, spectra: &parsed.spectra };
+    build(&ctx, &parsed)
+}
+
+/// serde_json appends " at line L column C"; we print the position up front.
+fn strip_position(msg: &str) -> String {
+    match msg.rfind(" at line ") {
+        Some(i) => msg[..i].to_string(),
+        None => msg.to_string(),
+    }
+}
+
+fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
+    let cam_path = [Seg::Key("camera".into())];
+    let c = &f.camera;
+    let position = ctx.vec3(&with(&cam_path, "position"), c.position)?;
+    let look_at = ctx.vec3(&with(&cam_path, "look_at"), c.look_at)?;
+    let up = ctx.vec3(&with(&cam_path, "up"), c.up)?;
+    if !(c.fov.is_finite() && c.fov > 0.0 && c.fov < 180.0) {
+        return Err(ctx.err(&with(&cam_path, "fov"), "fov must be between 0 and 180 degrees"));
+    }
+    if c.width == 0 || c.height == 0 {
+        return Err(ctx.err(&with(&cam_path, "width"), "width and height must be >= 1"));
+    }
+    let forward = look_at - position;
+    if forward.length_squared() == 0.0 || forward.cross(up).length_squared() == 0.0 {
+        return Err(ctx.err(&with(&cam_path, "look_at"), "look_at must differ from position and not be parallel to up"));
+    }
+    let mut b = SceneBuilder::new(Camera::new(position, look_at, up, c.fov, c.width, c.height));
+
+    let mut material_ids = BTreeMap::new();
+    for (name, spec) in &f.materials {
+        let path = [Seg::Key("materials".into()), Seg::Key(name.clone())];
+        let bsdf = ctx.material(&path, spec)?;
+        material_ids.insert(name.clone(), b.material(name, bsdf));
+    }
+
+    for (i, o) in f.objects.iter().enumerate() {
+        let path = with_index(&[Seg::Key("objects".into())], i);
+        let material = *material_ids.get(&o.material).ok_or_else(|| {
+            let known: Vec<&str> = material_ids.keys().map(String::as_str).collect();
+            ctx.err(&with(&path, "material"), format!("unknown material \"{}\" (known: {})", o.material, known.join(", ")))
+        })?;
+        let mut mesh = ctx.shape(&with(&path, "shape"), &o.shape)?;
+        if let Some(t) = &o.transform {
+            mesh.transform(ctx.transform(&with(&path, "transform"), t)?);
+        }
+        let emission = match &o.emission {
+            Some(e) => Some((ctx.spectrum(&with(&path, "emission"), e, Use::Emission)?, o.two_sided)),
+            None => None,
+        };
+        let name = o.name.clone().unwrap_or_else(|| format!("object {i}"));
+        b.mesh(&name, mesh, material, emission);
+    }
+
+    for (i, l) in f.lights.iter().enumerate() {
+        let path = with_index(&[Seg::Key("lights".into())], i);
+        match l {
+            LightSpec::Point(p) => {
+                let pos = ctx.vec3(&with(&path, "position"), p.position)?;
+                let intensity = ctx.spectrum(&with(&path, "intensity"), &p.intensity, Use::Emission)?;
+                b.point_light(p.name.as_deref().unwrap_or("point light"), pos, intensity);
+            }
+            LightSpec::Environment(e) => {
+                let le = ctx.spectrum(&with(&path, "radiance"), &e.radiance, Use::Emission)?;
+                b.environment(e.name.as_deref().unwrap_or("environment"), le);
+            }
+        }
+    }
+    let r = &f.render;
+    b.defaults = RenderDefaults { spp: r.spp, max_depth: r.max_depth, integrator: r.integrator.clone(), seed: r.seed };
+    Ok(b)
+}

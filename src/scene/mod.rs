@@ -1,0 +1,306 @@
+//! The scene model: triangles with materials and emission, lights, camera,
+//! and the queries the integrators make (closest hit as a surface
+//! interaction, visibility, light selection).
+
+mod json;
+mod locate;
+
+pub use json::{load_scene, parse_scene, LoadError};
+
+use crate::accel::Accel;
+use crate::camera::Camera;
+use crate::geometry::{offset_ray_origin, Frame, Ray};
+use crate::light::{AreaLight, EnvironmentLight, Light, PointLight};
+use crate::materials::Bsdf;
+use crate::sampling::AliasTable;
+use crate::shapes::Mesh;
+use crate::spectrum::{SampledWavelengths, Spectrum};
+use glam::Vec3A;
+use std::cell::Cell;
+
+thread_local! {
+    /// Rays traced by this thread since the last `take_ray_count`.
+    static RAYS: Cell<u64> = const { Cell::new(0) };
+}
+
+#[inline]
+fn count_ray() {
+    RAYS.with(|c| c.set(c.get() + 1));
+}
+
+/// Returns and resets the number of rays this thread has traced.
+pub fn take_ray_count() -> u64 {
+    RAYS.with(|c| c.replace(0))
+}
+
+/// A named BSDF.
+#[derive(Clone, Debug)]
+pub struct Material {
+    pub name: String,
+    pub bsdf: Bsdf,
+}
+
+/// Defaults a scene file may set for `prism render`.
+#[derive(Clone, Debug, Default)]
+pub struct RenderDefaults {
+    pub spp: Option<u32>,
+    pub max_depth: Option<u32>,
+    pub integrator: Option<String>,
+    pub seed: Option<u64>,
+}
+
+const NO_LIGHT: u32 = u32::MAX;
+
+#[derive(Clone, Debug)]
+struct TriangleRecord {
+    v: [Vec3A; 3],
+    /// Geometric normal from the winding: (v1 - v0) x (v2 - v0), normalised.
+    ng: Vec3A,
+    /// Per-vertex shading normals, if the mesh has them.
+    ns: Option<[Vec3A; 3]>,
+    material: u32,
+    light: u32,
+}
+
+/// A ray's closest hit, with everything shading needs.
+#[derive(Clone, Copy, Debug)]
+pub struct SurfaceInteraction {
+    pub p: Vec3A,
+    pub t: f32,
+    /// Geometric normal (winding side).
+    pub ng: Vec3A,
+    /// Shading frame; its normal is on the same side as `ng`.
+    pub frame: Frame,
+    /// Unit direction back along the incoming ray.
+    pub wo: Vec3A,
+    pub material: u32,
+    /// The area light of this triangle, if it emits.
+    pub light: Option<u32>,
+}
+
+impl SurfaceInteraction {
+    /// A ray leaving the surface in direction `w`, offset off the surface.
+    #[inline]
+    pub fn spawn_ray(&self, w: Vec3A) -> Ray {
+        Ray::new(offset_ray_origin(self.p, self.ng, w), w)
+    }
+
+    /// Veach's shading-normal correction for adjoint (importance) transport,
+    /// Veach 1997 eq. 5.19: |wo.ns| |wi.ng| / (|wo.ng| |wi.ns|), 0 when the
+    /// denominator is 0. `wo` and `wi` are world directions.
+    #[inline]
+    pub fn shading_correction(&self, wo: Vec3A, wi: Vec3A) -> f32 {
+        let num = wo.dot(self.frame.n).abs() * wi.dot(self.ng).abs();
+        let den = wo.dot(self.ng).abs() * wi.dot(self.frame.n).abs();
+        if den == 0.0 {
+            0.0
+        } else {
+            num / den
+        }
+    }
+}
+
+pub struct Scene {
+    pub camera: Camera,
+    pub accel: Accel,
+    tris: Vec<TriangleRecord>,
+    pub materials: Vec<Material>,
+    pub lights: Vec<Light>,
+    /// For each light, the name of the object or light entry it came from.
+    pub light_names: Vec<String>,
+    light_sampler: Option<AliasTable>,
+    environment: Option<u32>,
+    pub center: Vec3A,
+    pub radius: f32,
+    pub defaults: RenderDefaults,
+}
+
+/// Assembles a scene from meshes, materials and lights (used by the JSON
+/// loader and by tests that build scenes in code).
+pub struct SceneBuilder {
+    camera: Camera,
+    materials: Vec<Material>,
+    meshes: Vec<(Mesh, u32, Option<(Spectrum, bool)>, String)>,
+    lights: Vec<(Light, String)>,
+    pub defaults: RenderDefaults,
+}
+
+impl SceneBuilder {
+    pub fn new(camera: Camera) -> Self {
+        Self { camera, materials: Vec::new(), meshes: Vec::new(), lights: Vec::new(), defaults: RenderDefaults::default() }
+    }
+
+    /// Adds a material; returns its index.
+    pub fn material(&mut self, name: &str, bsdf: Bsdf) -> u32 {
+        self.materials.push(Material { name: name.to_string(), bsdf });
+        (self.materials.len() - 1) as u32
+    }
+
+    /// Adds a mesh with a material and optional emission (radiance, two-sided).
+    pub fn mesh(&mut self, name: &str, mesh: Mesh, material: u32, emission: Option<(Spectrum, bool)>) -> &mut Self {
+        self.meshes.push((mesh, material, emission, name.to_string()));
+        self
+    }
+
+    /// Changes the image resolution (the vertical field of view is kept).
+    pub fn set_resolution(&mut self, width: u32, height: u32) {
+        self.camera = self.camera.with_resolution(width, height);
+    }
+
+    pub fn point_light(&mut self, name: &str, p: Vec3A, intensity: Spectrum) -> &mut Self {
+        self.lights.push((Light::Point(PointLight { p, intensity }), name.to_string()));
+        self
+    }
+
+    pub fn environment(&mut self, name: &str, le: Spectrum) -> &mut Self {
+        let env = EnvironmentLight { le, center: Vec3A::ZERO, radius: 1.0 };
+        self.lights.push((Light::Environment(env), name.to_string()));
+        self
+    }
+
+    pub fn build(self) -> Scene {
+        let mut tris = Vec::new();
+        let mut lights = Vec::new();
+        let mut light_names = Vec::new();
+        for (mesh, material, emission, name) in &self.meshes {
+            for (k, idx) in mesh.indices.iter().enumerate() {
+                let v = idx.map(|i| mesh.positions[i as usize]);
+                let cross = (v[1] - v[0]).cross(v[2] - v[0]);
+                let area = 0.5 * cross.length();
+                let ng = if area > 0.0 && area.is_finite() { cross.normalize() } else { Vec3A::Z };
+                let ns = (!mesh.normals.is_empty()).then(|| idx.map(|i| mesh.normals[i as usize]));
+                let mut light = NO_LIGHT;
+                if let Some((le, two_sided)) = emission {
+                    if area > 0.0 && area.is_finite() {
+                        light = lights.len() as u32;
+                        let prim = tris.len() as u32;
+                        lights.push(Light::Area(AreaLight { v, n: ng, area, le: le.clone(), two_sided: *two_sided, prim }));
+                        light_names.push(format!("{name} (triangle {k})"));
+                    }
+                }
+                tris.push(TriangleRecord { v, ng, ns, material: *material, light });
+            }
+        }
+        let positions: Vec<[Vec3A; 3]> = tris.iter().map(|t| t.v).collect();
+        let accel = Accel::build(&positions);
+        let (lo, hi) = if tris.is_empty() { (Vec3A::ZERO, Vec3A::ZERO) } else { accel.bounds() };
+        let (lo, hi) = (lo.min(self.camera.position), hi.max(self.camera.position));
+        let center = (lo + hi) * 0.5;
+        let radius = ((hi - lo).length() * 0.5).max(1e-3);
+        let mut environment = None;
+        for (mut light, name) in self.lights {
+            if let Light::Environment(e) = &mut light {
+                e.center = center;
+                e.radius = radius;
+                environment = Some(lights.len() as u32);
+            }
+            lights.push(light);
+            light_names.push(name);
+        }
+        let powers: Vec<f32> = lights.iter().map(Light::power).collect();
+        let light_sampler = AliasTable::new(&powers);
+        Scene {
+            camera: self.camera,
+            accel,
+            tris,
+            materials: self.materials,
+            lights,
+            light_names,
+            light_sampler,
+            environment,
+            center,
+            radius,
+            defaults: self.defaults,
+        }
+    }
+}
+
+impl Scene {
+    /// Closest surface hit along the ray.
+    #[inline]
+    pub fn intersect(&self, ray: &Ray) -> Option<SurfaceInteraction> {
+        count_ray();
+        let hit = self.accel.intersect(ray, f32::INFINITY)?;
+        let tri = &self.tris[hit.prim as usize];
+        let b0 = 1.0 - hit.b1 - hit.b2;
+        let p = tri.v[0] * b0 + tri.v[1] * hit.b1 + tri.v[2] * hit.b2;
+        let ng = tri.ng;
+        let mut ns = match tri.ns {
+            Some(n) => (n[0] * b0 + n[1] * hit.b1 + n[2] * hit.b2).normalize_or_zero(),
+            None => ng,
+        };
+        if ns == Vec3A::ZERO || !ns.is_finite() {
+            ns = ng;
+        } else if ns.dot(ng) < 0.0 {
+            ns = -ns;
+        }
+        Some(SurfaceInteraction {
+            p,
+            t: hit.t,
+            ng,
+            frame: Frame::from_normal(ns),
+            wo: -ray.d,
+            material: tri.material,
+            light: (tri.light != NO_LIGHT).then_some(tri.light),
+        })
+    }
+
+    /// Whether the segment between two surface points is unobstructed; each
+    /// end is offset off its own surface (normals `n0`, `n1`).
+    #[inline]
+    pub fn unoccluded(&self, p0: Vec3A, n0: Vec3A, p1: Vec3A, n1: Vec3A) -> bool {
+        let d = p1 - p0;
+        let o = if n0 == Vec3A::ZERO { p0 } else { offset_ray_origin(p0, n0, d) };
+        let target = if n1 == Vec3A::ZERO { p1 } else { offset_ray_origin(p1, n1, -d) };
+        let ray = Ray::new(o, target - o);
+        count_ray();
+        !self.accel.occluded(&ray, 1.0 - 1e-4)
+    }
+
+    /// Whether a ray leaving a surface point towards infinity escapes.
+    #[inline]
+    pub fn escapes(&self, p: Vec3A, n: Vec3A, w: Vec3A) -> bool {
+        let ray = Ray::new(offset_ray_origin(p, n, w), w);
+        count_ray();
+        !self.accel.occluded(&ray, f32::INFINITY)
+    }
+
+    #[inline]
+    pub fn bsdf(&self, si: &SurfaceInteraction) -> &Bsdf {
+        &self.materials[si.material as usize].bsdf
+    }
+
+    /// The BSDF at a hit; a dispersive one makes the path keep only its hero
+    /// wavelength from here on (pbrt-v4: at material evaluation, so the
+    /// decision does not depend on which lobe is then sampled).
+    #[inline]
+    pub fn bsdf_at(&self, si: &SurfaceInteraction, lambda: &mut SampledWavelengths) -> &Bsdf {
+        let bsdf = self.bsdf(si);
+        if bsdf.is_dispersive() {
+            lambda.terminate_secondary();
+        }
+        bsdf
+    }
+
+    /// Choose a light proportionally to power: (index, probability).
+    #[inline]
+    pub fn sample_light(&self, u: f32) -> Option<(u32, f32)> {
+        let (i, pmf) = self.light_sampler.as_ref()?.sample(u);
+        Some((i as u32, pmf))
+    }
+
+    /// Probability that `sample_light` picks light `i`.
+    #[inline]
+    pub fn light_pmf(&self, i: u32) -> f32 {
+        self.light_sampler.as_ref().map_or(0.0, |t| t.pmf(i as usize))
+    }
+
+    #[inline]
+    pub fn environment(&self) -> Option<(u32, &Light)> {
+        self.environment.map(|i| (i, &self.lights[i as usize]))
+    }
+
+    pub fn triangle_count(&self) -> usize {
+        self.tris.len()
+    }
+}

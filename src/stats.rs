@@ -1,0 +1,205 @@
+//! Image statistics for proving estimators right (VALIDATION.md §1, §6):
+//! K independent passes reduced to block means with standard errors,
+//! z-scores against another estimator, an analytic value or a stored
+//! reference, the Bonferroni-corrected Student-t rule plus a chi-square check
+//! of sum z^2, and relMSE for the variance benchmarks.
+
+use crate::film::Film;
+use crate::integrators::Integrator;
+use crate::render::{render, RenderOptions};
+use crate::scene::Scene;
+use statrs::distribution::{ChiSquared, ContinuousCDF, StudentsT};
+
+/// An image as linear sRGB pixels, row-major.
+pub type Image = Vec<[f32; 3]>;
+
+/// Renders `k` independent passes of `spp` samples each (pass i uses seed
+/// `seed + i`).
+pub fn render_passes(scene: &Scene, integrator: &dyn Integrator, spp: u32, k: u32, seed: u64, threads: usize) -> Vec<Image> {
+    (0..k)
+        .map(|i| {
+            let mut film = Film::new(scene.camera.width, scene.camera.height);
+            let opts = RenderOptions { seed: seed.wrapping_add(i as u64), threads, progress: false };
+            render(scene, integrator, &opts, &mut film, 0..spp);
+            film.image()
+        })
+        .collect()
+}
+
+/// Per-block means and standard errors of the mean over passes.
+#[derive(Clone, Debug)]
+pub struct BlockStats {
+    pub blocks_x: u32,
+    pub blocks_y: u32,
+    pub block: u32,
+    /// Number of passes the statistics come from.
+    pub k: u32,
+    pub mean: Vec<[f64; 3]>,
+    pub stderr: Vec<[f64; 3]>,
+}
+
+impl BlockStats {
+    /// Averages `block` x `block` pixel blocks of each pass (partial blocks at
+    /// the border are dropped), then takes mean and standard error over passes.
+    pub fn from_passes(passes: &[Image], width: u32, height: u32, block: u32) -> Self {
+        let (bx, by) = (width / block, height / block);
+        let k = passes.len();
+        assert!(k >= 2, "need at least two passes");
+        let n = (bx * by) as usize;
+        let mut per_pass = vec![vec![[0f64; 3]; n]; k];
+        for (p, img) in passes.iter().enumerate() {
+            for j in 0..by * block {
+                for i in 0..bx * block {
+                    let px = img[(j * width + i) as usize];
+                    let b = ((j / block) * bx + i / block) as usize;
+                    for c in 0..3 {
+                        per_pass[p][b][c] += px[c] as f64 / (block * block) as f64;
+                    }
+                }
+            }
+        }
+        let mut mean = vec![[0f64; 3]; n];
+        let mut stderr = vec![[0f64; 3]; n];
+        for b in 0..n {
+            for c in 0..3 {
+                let m = per_pass.iter().map(|p| p[b][c]).sum::<f64>() / k as f64;
+                let var = per_pass.iter().map(|p| (p[b][c] - m).powi(2)).sum::<f64>() / (k - 1) as f64;
+                mean[b][c] = m;
+                stderr[b][c] = (var / k as f64).sqrt();
+            }
+        }
+        Self { blocks_x: bx, blocks_y: by, block, k: k as u32, mean, stderr }
+    }
+
+    /// The same statistics with every mean multiplied by `s` (for negative
+    /// controls: a deliberately biased estimator).
+    pub fn scaled(&self, s: f64) -> Self {
+        let mut o = self.clone();
+        for (m, e) in o.mean.iter_mut().zip(o.stderr.iter_mut()) {
+            for c in 0..3 {
+                m[c] *= s;
+                e[c] *= s;
+            }
+        }
+        o
+    }
+}
+
+/// The outcome of a comparison, with what a failure report needs.
+#[derive(Clone, Debug)]
+pub struct Comparison {
+    /// Number of (block, channel) comparisons made.
+    pub n: usize,
+    pub worst_z: f64,
+    /// (block x, block y, channel) of the worst z.
+    pub worst_at: (u32, u32, usize),
+    /// |z| above which one comparison fails: the two-sided Student-t quantile
+    /// with K-1 degrees of freedom at alpha = 0.001 / n.
+    pub threshold: f64,
+    pub sum_z2: f64,
+    /// Upper-tail probability of sum z^2 under chi-square(n).
+    pub chi2_p: f64,
+    pub passed: bool,
+}
+
+impl std::fmt::Display for Comparison {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{}: worst |z| = {:.3} at block ({}, {}) channel {} (threshold {:.3}); sum z^2 = {:.1} over {} (p = {:.2e})",
+            if self.passed { "agree" } else { "DISAGREE" },
+            self.worst_z,
+            self.worst_at.0,
+            self.worst_at.1,
+            self.worst_at.2,
+            self.threshold,
+            self.sum_z2,
+            self.n,
+            self.chi2_p
+        )
+    }
+}
+
+/// Family-wise significance of every comparison (VALIDATION.md §1).
+pub const ALPHA: f64 = 0.001;
+
+/// Compares block statistics `a` with `b`: z = (m_a - m_b) / sqrt(s_a^2 + s_b^2).
+pub fn compare(a: &BlockStats, b: &BlockStats) -> Comparison {
+    assert_eq!(a.mean.len(), b.mean.len(), "block grids differ");
+    compare_with(a, |i| (b.mean[i], b.stderr[i]))
+}
+
+/// Compares block statistics with an exact value per channel (s_b = 0).
+pub fn compare_to_value(a: &BlockStats, value: [f64; 3]) -> Comparison {
+    compare_with(a, |_| (value, [0.0; 3]))
+}
+
+fn compare_with(a: &BlockStats, reference: impl Fn(usize) -> ([f64; 3], [f64; 3])) -> Comparison {
+    let mut n = 0;
+    let mut worst = (0.0f64, (0, 0, 0));
+    let mut sum_z2 = 0.0;
+    for i in 0..a.mean.len() {
+        let (rm, rs) = reference(i);
+        for c in 0..3 {
+            let diff = a.mean[i][c] - rm[c];
+            let s = (a.stderr[i][c].powi(2) + rs[c].powi(2)).sqrt();
+            let z = if s > 0.0 {
+                diff / s
+            } else if diff.abs() <= 1e-9 * rm[c].abs().max(1e-9) {
+                0.0
+            } else {
+                f64::INFINITY
+            };
+            n += 1;
+            sum_z2 += z * z;
+            if z.abs() > worst.0 || !z.is_finite() {
+                let (bx, by) = (i as u32 % a.blocks_x, i as u32 / a.blocks_x);
+                worst = (z.abs(), (bx, by, c));
+            }
+        }
+    }
+    let alpha = ALPHA / n as f64;
+    let t = StudentsT::new(0.0, 1.0, (a.k - 1) as f64).expect("Student t");
+    let threshold = t.inverse_cdf(1.0 - alpha / 2.0);
+    let chi2_p = if sum_z2.is_finite() {
+        1.0 - ChiSquared::new(n as f64).expect("chi-square").cdf(sum_z2)
+    } else {
+        0.0
+    };
+    let passed = worst.0 <= threshold && chi2_p >= ALPHA;
+    Comparison { n, worst_z: worst.0, worst_at: worst.1, threshold, sum_z2, chi2_p, passed }
+}
+
+/// relMSE of an image against a reference (VALIDATION.md §6): the mean over
+/// pixels and channels of (x - ref)^2 / (ref^2 + 0.01).
+pub fn rel_mse(image: &[[f32; 3]], reference: &[[f32; 3]]) -> f64 {
+    assert_eq!(image.len(), reference.len());
+    let sum: f64 = image
+        .iter()
+        .zip(reference)
+        .flat_map(|(x, r)| (0..3).map(move |c| (x[c] as f64, r[c] as f64)))
+        .map(|(x, r)| (x - r).powi(2) / (r * r + 0.01))
+        .sum();
+    sum / (image.len() * 3) as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn noisy_passes(mean: f32, k: usize, seed: u64) -> Vec<Image> {
+        let mut s = crate::sampling::Sampler::new(seed, 0, 0);
+        (0..k).map(|_| (0..64).map(|_| [0, 1, 2].map(|_| mean + (s.get1d() - 0.5))).collect()).collect()
+    }
+
+    #[test]
+    fn same_mean_agrees_and_shift_is_detected() {
+        let a = BlockStats::from_passes(&noisy_passes(1.0, 32, 1), 8, 8, 4);
+        let b = BlockStats::from_passes(&noisy_passes(1.0, 32, 2), 8, 8, 4);
+        assert!(compare(&a, &b).passed, "{}", compare(&a, &b));
+        let biased = BlockStats::from_passes(&noisy_passes(1.2, 32, 3), 8, 8, 4);
+        assert!(!compare(&a, &biased).passed);
+        assert!(compare_to_value(&a, [1.0; 3]).passed);
+        assert!(!compare_to_value(&a, [1.2; 3]).passed);
+    }
+}

@@ -1,0 +1,555 @@
+//! The BVH against brute force and a double-precision reference, the
+//! watertightness of the triangle test (Woop et al. 2013) through the BVH, ray
+//! origin offsetting (Wachter & Binder, RT Gems ch. 6) across scales, and
+//! degenerate triangles.
+
+use glam::{Affine3A, Vec3A};
+use prism::accel::{intersect_triangle, is_degenerate, Accel, TriangleHit};
+use prism::geometry::{offset_ray_origin, Ray};
+use prism::shapes::Mesh;
+use rand_xoshiro::rand_core::{Rng, SeedableRng};
+use rand_xoshiro::Xoshiro256PlusPlus;
+
+struct Rand(Xoshiro256PlusPlus);
+
+impl Rand {
+    fn new(seed: u64) -> Self {
+        Self(Xoshiro256PlusPlus::seed_from_u64(seed))
+    }
+    /// Uniform in [0, 1).
+    fn f(&mut self) -> f32 {
+        (self.0.next_u32() >> 8) as f32 * (1.0 / (1u32 << 24) as f32)
+    }
+    fn range(&mut self, lo: f32, hi: f32) -> f32 {
+        lo + (hi - lo) * self.f()
+    }
+    fn below(&mut self, n: usize) -> usize {
+        (self.0.next_u64() % n as u64) as usize
+    }
+    fn in_cube(&mut self, h: f32) -> Vec3A {
+        Vec3A::new(self.range(-h, h), self.range(-h, h), self.range(-h, h))
+    }
+    fn unit(&mut self) -> Vec3A {
+        let z = self.range(-1.0, 1.0);
+        let phi = self.range(0.0, std::f32::consts::TAU);
+        let r = (1.0 - z * z).max(0.0).sqrt();
+        Vec3A::new(r * phi.cos(), r * phi.sin(), z)
+    }
+    /// Cosine-distributed around `n` (a BSDF-like bounce).
+    fn cosine_around(&mut self, n: Vec3A) -> Vec3A {
+        let f = prism::geometry::Frame::from_normal(n);
+        let (u, v) = (self.f(), self.range(0.0, std::f32::consts::TAU));
+        let r = u.sqrt();
+        let z = (1.0 - u).max(0.0).sqrt();
+        f.to_world(Vec3A::new(r * v.cos(), r * v.sin(), z))
+            .normalize()
+    }
+}
+
+fn tris_of(m: &Mesh) -> Vec<[Vec3A; 3]> {
+    m.triangles().collect()
+}
+
+fn geometric_normal(t: &[Vec3A; 3]) -> Vec3A {
+    (t[1] - t[0]).cross(t[2] - t[0]).normalize()
+}
+
+fn hit_point(t: &[Vec3A; 3], h: &TriangleHit) -> Vec3A {
+    t[0] * (1.0 - h.b1 - h.b2) + t[1] * h.b1 + t[2] * h.b2
+}
+
+/// Closest hit by testing every triangle with the same watertight test; ties
+/// go to the lowest input index.
+fn brute(tris: &[[Vec3A; 3]], ray: &Ray, t_max: f32) -> Option<TriangleHit> {
+    let mut best: Option<TriangleHit> = None;
+    for (i, tri) in tris.iter().enumerate() {
+        let tm = best.map_or(t_max, |b| b.t);
+        if let Some((t, b1, b2)) = intersect_triangle(ray, tri, tm) {
+            best = Some(TriangleHit {
+                t,
+                prim: i as u32,
+                b1,
+                b2,
+            });
+        }
+    }
+    best
+}
+
+/// Double-precision Moller-Trumbore: (t, smallest barycentric). A ray whose
+/// smallest barycentric is near 0 passes near an edge, where f32 tests may
+/// legitimately pick either neighbour.
+fn reference_f64(ray: &Ray, tri: &[Vec3A; 3]) -> Option<(f64, f64)> {
+    let [a, b, c] = tri.map(|v| v.as_dvec3());
+    let (o, d) = (ray.o.as_dvec3(), ray.d.as_dvec3());
+    let (e1, e2) = (b - a, c - a);
+    let p = d.cross(e2);
+    let det = e1.dot(p);
+    if det.abs() < 1e-300 {
+        return None;
+    }
+    let s = o - a;
+    let u = s.dot(p) / det;
+    let q = s.cross(e1);
+    let v = d.dot(q) / det;
+    let t = e2.dot(q) / det;
+    let margin = u.min(v).min(1.0 - u - v);
+    (t > 0.0 && margin > -0.01).then_some((t, margin))
+}
+
+fn random_soup(rng: &mut Rand, n: usize) -> Vec<[Vec3A; 3]> {
+    (0..n)
+        .map(|i| {
+            let c = rng.in_cube(1.0);
+            // Mostly small triangles, some long slivers and large ones.
+            let size = match i % 10 {
+                0 => 1.0,
+                1 => 0.5,
+                _ => 0.08,
+            };
+            [
+                c + rng.in_cube(size),
+                c + rng.in_cube(size),
+                c + rng.in_cube(size),
+            ]
+        })
+        .collect()
+}
+
+/// Scenes for the brute-force comparisons: (name, triangles).
+fn comparison_scenes() -> Vec<(&'static str, Vec<[Vec3A; 3]>)> {
+    let mut rng = Rand::new(7);
+    let soup = random_soup(&mut rng, 3000);
+    let sphere = tris_of(&Mesh::sphere(Vec3A::new(0.1, -0.2, 0.05), 1.2, 4, false));
+    let mut nested = tris_of(&Mesh::sphere(Vec3A::ZERO, 1.4, 3, false));
+    nested.extend(tris_of(&Mesh::cuboid(
+        Vec3A::splat(-0.5),
+        Vec3A::new(0.3, 0.6, 0.2),
+    )));
+    let mut m = Mesh::sphere(Vec3A::new(0.4, 0.4, 0.4), 0.3, 2, false);
+    m.flip();
+    nested.extend(tris_of(&m));
+    nested.extend(random_soup(&mut rng, 300));
+    vec![("soup", soup), ("sphere", sphere), ("nested", nested)]
+}
+
+/// Random rays: origins in and around the scene (many inside closed
+/// meshes), random directions of random length, finite and infinite t_max.
+fn random_ray(rng: &mut Rand) -> (Ray, f32) {
+    let o = rng.in_cube(1.6);
+    let d = rng.unit() * [1.0, 0.01, 37.0][rng.below(3)];
+    let t_max = if rng.f() < 0.5 {
+        f32::INFINITY
+    } else {
+        rng.range(0.0, 3.0) / d.length()
+    };
+    (Ray::new(o, d), t_max)
+}
+
+#[test]
+fn bvh_closest_hit_and_occlusion_match_brute_force() {
+    let mut rng = Rand::new(1);
+    for (name, tris) in comparison_scenes() {
+        let accel = Accel::build(&tris);
+        assert_eq!(accel.len(), tris.len());
+        let mut hits = 0;
+        for i in 0..4000 {
+            let (ray, t_max) = random_ray(&mut rng);
+            let got = accel.intersect(&ray, t_max);
+            let want = brute(&tris, &ray, t_max);
+            match (got, want) {
+                (None, None) => {}
+                (Some(g), Some(w)) => {
+                    hits += 1;
+                    // Same test, same numbers: t is bit-identical; the prim
+                    // may differ only for an exact tie (a shared edge).
+                    assert_eq!(g.t, w.t, "{name} ray {i}: {ray:?}");
+                    if g.prim == w.prim {
+                        assert_eq!((g.b1, g.b2), (w.b1, w.b2), "{name} ray {i}");
+                    } else {
+                        let tie = intersect_triangle(&ray, &tris[g.prim as usize], f32::INFINITY);
+                        assert_eq!(tie.map(|h| h.0), Some(g.t), "{name} ray {i}: not a tie");
+                    }
+                    assert!(g.t > 0.0 && g.t < t_max);
+                    assert!(
+                        g.b1 >= 0.0 && g.b2 >= 0.0 && g.b1 + g.b2 <= 1.0 + 1e-6,
+                        "{g:?}"
+                    );
+                    // Nothing strictly closer: occlusion up to t is false.
+                    assert!(!accel.occluded(&ray, g.t), "{name} ray {i}");
+                }
+                _ => panic!("{name} ray {i}: bvh {got:?} vs brute force {want:?}; {ray:?}"),
+            }
+            assert_eq!(
+                accel.occluded(&ray, t_max),
+                want.is_some(),
+                "{name} ray {i}"
+            );
+        }
+        assert!(hits > 1000, "{name}: only {hits} hits, test too weak");
+    }
+}
+
+#[test]
+fn bvh_matches_double_precision_reference() {
+    let mut rng = Rand::new(2);
+    for (name, tris) in comparison_scenes() {
+        let accel = Accel::build(&tris);
+        let mut robust = 0;
+        for i in 0..4000 {
+            let (ray, t_max) = random_ray(&mut rng);
+            let t_max64 = t_max as f64;
+            let refs: Vec<(usize, f64, f64)> = tris
+                .iter()
+                .enumerate()
+                .filter_map(|(k, tri)| reference_f64(&ray, tri).map(|(t, m)| (k, t, m)))
+                .filter(|&(_, t, _)| t < t_max64 * (1.0 + 1e-5))
+                .collect();
+            let closest = refs.iter().copied().min_by(|a, b| a.1.total_cmp(&b.1));
+            // The closest hit that is clearly inside its triangle.
+            let closest_inside = refs
+                .iter()
+                .filter(|r| r.2 > 1e-5)
+                .map(|r| r.1)
+                .min_by(f64::total_cmp);
+            let got = accel.intersect(&ray, t_max);
+            // Clear-cut reference hit: well inside its triangle, no rival
+            // within 1e-4 of its distance, and away from 0 and t_max.
+            let clear = closest.filter(|&(k, t, m)| {
+                m > 1e-4
+                    && t < t_max64 * (1.0 - 1e-4)
+                    && t > 1e-5
+                    && refs
+                        .iter()
+                        .all(|&(j, s, _)| j == k || (s - t).abs() > 1e-4 * t)
+            });
+            if let Some((k, t, _)) = clear {
+                robust += 1;
+                let g =
+                    got.unwrap_or_else(|| panic!("{name} ray {i}: missed clear hit {k} at {t}"));
+                assert_eq!(g.prim as usize, k, "{name} ray {i}");
+                assert!(
+                    (g.t as f64 - t).abs() <= 1e-5 * t,
+                    "{name} ray {i}: {} vs {t}",
+                    g.t
+                );
+            }
+            match got {
+                Some(g) => {
+                    // What we report must really be there (f64 agrees within
+                    // rounding) and not be farther than the true closest.
+                    let (t, m) = reference_f64(&ray, &tris[g.prim as usize])
+                        .unwrap_or_else(|| panic!("{name} ray {i}: phantom hit {g:?}"));
+                    assert!(m > -1e-5, "{name} ray {i}: hit outside triangle ({m})");
+                    assert!((g.t as f64 - t).abs() <= 1e-4 * t + 1e-6, "{name} ray {i}");
+                    if let Some(tc) = closest_inside {
+                        assert!(
+                            g.t as f64 <= tc * (1.0 + 1e-4) + 1e-6,
+                            "{name} ray {i}: not closest"
+                        );
+                    }
+                }
+                None => {
+                    for &(k, t, m) in &refs {
+                        assert!(
+                            m < 1e-5 || t > t_max64 * (1.0 - 1e-5) || t < 1e-6,
+                            "{name} ray {i}: missed triangle {k} at t = {t}, margin {m}"
+                        );
+                    }
+                }
+            }
+        }
+        assert!(robust > 1000, "{name}: only {robust} clear-cut rays");
+    }
+}
+
+#[test]
+fn large_mesh_matches_brute_force() {
+    let tris = tris_of(&Mesh::sphere(Vec3A::ZERO, 1.0, 6, false));
+    let accel = Accel::build(&tris);
+    let mut rng = Rand::new(3);
+    for i in 0..300 {
+        let (ray, t_max) = random_ray(&mut rng);
+        let (got, want) = (accel.intersect(&ray, t_max), brute(&tris, &ray, t_max));
+        assert_eq!(got.map(|h| h.t), want.map(|h| h.t), "ray {i}");
+        assert_eq!(accel.occluded(&ray, t_max), want.is_some(), "ray {i}");
+    }
+}
+
+/// Points to aim at on a closed mesh: every vertex, and points along every
+/// edge (shared by two triangles), including their midpoints.
+fn edge_and_vertex_targets(tris: &[[Vec3A; 3]], rng: &mut Rand) -> Vec<Vec3A> {
+    let per_edge = (2000 / tris.len()).max(1);
+    let mut targets = Vec::new();
+    for t in tris {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            targets.push(a);
+            targets.push(a + (b - a) * 0.5);
+            for _ in 0..per_edge {
+                targets.push(a + (b - a) * rng.f());
+            }
+        }
+    }
+    targets
+}
+
+/// A non-watertight f32 Moller-Trumbore (what obvhs ships): used only to
+/// show the edge-aimed rays are hard enough to break a naive test.
+fn naive_hits(ray: &Ray, tris: &[[Vec3A; 3]]) -> bool {
+    tris.iter().any(|tri| {
+        let (e1, e2) = (tri[1] - tri[0], tri[2] - tri[0]);
+        let p = ray.d.cross(e2);
+        let det = e1.dot(p);
+        if det.abs() < f32::EPSILON {
+            return false;
+        }
+        let inv = 1.0 / det;
+        let s = ray.o - tri[0];
+        let u = s.dot(p) * inv;
+        let q = s.cross(e1);
+        let v = ray.d.dot(q) * inv;
+        let t = e2.dot(q) * inv;
+        u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t > f32::EPSILON
+    })
+}
+
+#[test]
+fn rays_through_shared_edges_and_vertices_never_slip_through() {
+    let mut rng = Rand::new(4);
+    let mut naive_misses = 0;
+    let mut spun = Mesh::cuboid(Vec3A::splat(-1.0), Vec3A::splat(1.0));
+    spun.transform(Affine3A::from_rotation_x(0.3) * Affine3A::from_rotation_y(0.6));
+    let meshes = [
+        (
+            "cuboid",
+            Mesh::cuboid(Vec3A::new(-1.0, -0.5, 0.0), Vec3A::new(2.0, 1.0, 3.0)),
+            0.99,
+        ),
+        ("rotated cuboid", spun, 0.5),
+        (
+            "icosphere",
+            Mesh::sphere(Vec3A::new(0.2, 0.3, -0.1), 1.0, 3, false),
+            0.6,
+        ),
+        (
+            "fine icosphere",
+            Mesh::sphere(Vec3A::new(1e3, 0.0, 0.0), 7.0, 5, false),
+            0.6,
+        ),
+    ];
+    for (name, mesh, inner) in meshes {
+        let tris = tris_of(&mesh);
+        let accel = Accel::build(&tris);
+        let (lo, hi) = accel.bounds();
+        let (c, half) = ((lo + hi) * 0.5, (hi - lo) * 0.5);
+        let targets = edge_and_vertex_targets(&tris, &mut rng);
+        let mut rays = 0;
+        for (j, &target) in targets.iter().enumerate() {
+            // From the centre, and from a random point well inside.
+            for o in [c, c + rng.in_cube(1.0) * half * inner * 0.5] {
+                let ray = Ray::new(o, target - o);
+                rays += 1;
+                assert!(
+                    accel.intersect(&ray, f32::INFINITY).is_some(),
+                    "{name}: ray {j} to {target} slipped through"
+                );
+                assert!(accel.occluded(&ray, f32::INFINITY), "{name}: ray {j}");
+                naive_misses += (!naive_hits(&ray, &tris)) as usize;
+            }
+        }
+        assert!(rays > 1000, "{name}");
+    }
+    // Quad diagonals hit by axis-aligned rays (the case obvhs's own test
+    // misses), in each axis plane and from both sides.
+    for axis in 0..3 {
+        let lift = |u: f32, v: f32, w: f32| {
+            let mut p = [0.0; 3];
+            p[axis] = w;
+            p[(axis + 1) % 3] = u;
+            p[(axis + 2) % 3] = v;
+            Vec3A::from(p)
+        };
+        let (u0, u1, w) = (-0.3f32, 0.7f32, 0.25f32);
+        let quad = Mesh::quad([
+            lift(u0, u0, w),
+            lift(u1, u0, w),
+            lift(u1, u1, w),
+            lift(u0, u1, w),
+        ]);
+        let tris = tris_of(&quad);
+        let accel = Accel::build(&tris);
+        for k in 0..=1000 {
+            let s = u0 + (u1 - u0) * (k as f32 / 1000.0);
+            for side in [-1.0f32, 1.0] {
+                let o = lift(s, s, w + side);
+                let mut d = [0.0; 3];
+                d[axis] = -side;
+                let ray = Ray::new(o, Vec3A::from(d));
+                let h = accel.intersect(&ray, f32::INFINITY);
+                assert!(h.is_some(), "axis {axis}: diagonal at {s} missed");
+                assert!(accel.occluded(&ray, f32::INFINITY));
+                naive_misses += (!naive_hits(&ray, &tris)) as usize;
+            }
+        }
+    }
+    eprintln!("naive f32 Moller-Trumbore missed {naive_misses} of the same rays");
+    assert!(
+        naive_misses > 0,
+        "the rays are too easy to tell a watertight test apart"
+    );
+}
+
+/// The offset origin must keep a spawned ray off the surface it leaves, at
+/// every scale, near and far from the world origin.
+#[test]
+fn offset_rays_never_rehit_their_surface() {
+    let mut rng = Rand::new(5);
+    for scale in [1e-3f32, 1.0, 1e5] {
+        for far in [Vec3A::ZERO, Vec3A::new(1.0, -0.7, 0.4) * 1e3 * scale] {
+            let place = Affine3A::from_scale_rotation_translation(
+                glam::Vec3::splat(scale),
+                glam::Quat::from_rotation_z(0.4),
+                far.into(),
+            );
+            let mut sphere = Mesh::sphere(Vec3A::ZERO, 1.0, 4, false);
+            sphere.transform(place);
+            let mut cuboid = Mesh::cuboid(Vec3A::new(-1.0, -0.6, -0.8), Vec3A::new(0.9, 1.0, 0.7));
+            cuboid.transform(place);
+            for (name, mesh) in [("sphere", sphere), ("cuboid", cuboid)] {
+                let tris = tris_of(&mesh);
+                let accel = Accel::build(&tris);
+                let ctx = format!("{name} scale {scale} at {far}");
+                for i in 0..3000 {
+                    // A hit from inside, as a path tracer would find it.
+                    let o = place.transform_point3a(rng.in_cube(0.5));
+                    let first = Ray::new(o, rng.unit());
+                    let h = accel
+                        .intersect(&first, f32::INFINITY)
+                        .unwrap_or_else(|| panic!("{ctx}: escaped a closed mesh"));
+                    let tri = &tris[h.prim as usize];
+                    let (p, n) = (hit_point(tri, &h), geometric_normal(tri));
+                    // Outward: nothing else is on that side of a convex mesh.
+                    let w_out = rng.cosine_around(n);
+                    let out = Ray::new(offset_ray_origin(p, n, w_out), w_out);
+                    assert!(
+                        accel.intersect(&out, f32::INFINITY).is_none(),
+                        "{ctx} ray {i}: outgoing ray re-hit the surface: {:?}",
+                        accel.intersect(&out, f32::INFINITY)
+                    );
+                    assert!(!accel.occluded(&out, f32::INFINITY), "{ctx} ray {i}");
+                    // Inward: must cross the mesh and hit another face.
+                    let w_in = rng.cosine_around(-n);
+                    let inward = Ray::new(offset_ray_origin(p, n, w_in), w_in);
+                    let h2 = accel
+                        .intersect(&inward, f32::INFINITY)
+                        .unwrap_or_else(|| panic!("{ctx} ray {i}: inward ray escaped"));
+                    let n2 = geometric_normal(&tris[h2.prim as usize]);
+                    assert!(
+                        n2.dot(n) < 0.999,
+                        "{ctx} ray {i}: re-hit own face at t = {}",
+                        h2.t
+                    );
+                    // Distance to the exact sphere the mesh is inscribed in;
+                    // the facets lie at most ~1e-3 r inside it.
+                    let oc = inward.o.as_dvec3() - far.as_dvec3();
+                    let (r, b) = (scale as f64, w_in.as_dvec3().dot(oc));
+                    let t_sphere = -b + (b * b - (oc.length_squared() - r * r)).max(0.0).sqrt();
+                    if name == "sphere" && -b > 0.2 * r {
+                        assert!(
+                            (h2.t as f64 - t_sphere).abs() < 0.02 * r,
+                            "{ctx} ray {i}: t = {} for sphere {t_sphere}",
+                            h2.t
+                        );
+                    } else {
+                        assert!(h2.t > 1e-3 * scale, "{ctx} ray {i}: t = {}", h2.t);
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn degenerate_triangles_never_hit_and_never_nan() {
+    let mut rng = Rand::new(6);
+    let mut degenerate = Vec::new();
+    for _ in 0..300 {
+        let a = rng.in_cube(1.0);
+        let b = rng.in_cube(1.0);
+        // Repeated vertices in every position.
+        degenerate.push([a, a, a]);
+        degenerate.push([a, a, b]);
+        degenerate.push([a, b, a]);
+        degenerate.push([b, a, a]);
+        // Exactly collinear: along an axis, and along a dyadic direction.
+        let axis = [Vec3A::X, Vec3A::Y, Vec3A::Z][rng.below(3)];
+        degenerate.push([a, a + axis * 0.25, a + axis * rng.range(-1.0, 1.0)]);
+        let base = (rng.in_cube(8.0)).round() / 8.0;
+        let dir = (rng.in_cube(4.0)).round() / 4.0;
+        degenerate.push([base, base + dir, base - dir * 2.0]);
+        // Non-finite vertices.
+        degenerate.push([a, b, Vec3A::new(f32::NAN, 0.0, 0.0)]);
+        degenerate.push([a, Vec3A::splat(f32::INFINITY), b]);
+    }
+    assert!(degenerate.iter().all(is_degenerate));
+    let valid = [
+        Vec3A::new(-2.0, -2.0, 0.1),
+        Vec3A::new(2.0, -2.0, 0.1),
+        Vec3A::new(0.0, 2.0, 0.1),
+    ];
+    let mut scene = degenerate.clone();
+    scene.push(valid);
+    for tris in [degenerate.clone(), scene] {
+        let accel = Accel::build(&tris);
+        assert_eq!(accel.len(), tris.len());
+        let (lo, hi) = accel.bounds();
+        assert!(lo.is_finite() && hi.is_finite());
+        let only_degenerate = tris.len() == degenerate.len();
+        for i in 0..6000 {
+            // Random rays, and rays aimed right at the degenerate ones: at
+            // a vertex, and along their line.
+            let tri = &degenerate[i % degenerate.len()];
+            let o = rng.in_cube(1.5);
+            let d = match i % 3 {
+                0 => rng.unit(),
+                1 => tri[0] - o,
+                _ => tri[1] - tri[0],
+            };
+            let o = if i % 3 == 2 { tri[0] - d * 0.5 } else { o };
+            let ray = Ray::new(o, d);
+            if !(o.is_finite() && d.is_finite()) || d == Vec3A::ZERO {
+                // No NaN rays reach a renderer, but they must not hit either.
+                assert!(accel.intersect(&ray, f32::INFINITY).is_none());
+                continue;
+            }
+            assert!(
+                intersect_triangle(&ray, tri, f32::INFINITY).is_none(),
+                "{tri:?}"
+            );
+            let hit = accel.intersect(&ray, f32::INFINITY);
+            assert_eq!(accel.occluded(&ray, f32::INFINITY), hit.is_some());
+            match hit {
+                None => {}
+                Some(h) => {
+                    assert!(!only_degenerate, "degenerate hit: {h:?}");
+                    assert_eq!(h.prim as usize, tris.len() - 1, "hit a degenerate triangle");
+                    assert!(h.t.is_finite() && h.b1.is_finite() && h.b2.is_finite());
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn empty_and_bounds() {
+    let empty = Accel::build(&[]);
+    let ray = Ray::new(Vec3A::ZERO, Vec3A::Z);
+    assert!(empty.is_empty() && empty.intersect(&ray, f32::INFINITY).is_none());
+    assert!(!empty.occluded(&ray, f32::INFINITY));
+    let (lo, hi) = (Vec3A::new(-1.0, 2.0, -3.0), Vec3A::new(4.0, 5.0, 6.0));
+    let accel = Accel::build(&tris_of(&Mesh::cuboid(lo, hi)));
+    assert_eq!(accel.bounds(), (lo, hi));
+    assert_eq!(accel.len(), 12);
+    assert!(!accel.is_empty());
+}

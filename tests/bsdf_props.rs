@@ -1,0 +1,764 @@
+//! Deterministic properties of the BSDFs (VALIDATION.md §4): sample() agrees
+//! with eval() and pdf(); reciprocity (with eta^2 for radiance-mode
+//! transmission) and adjoint symmetry; energy (directional albedo by
+//! quadrature <= 1, = 1 where lossless); the Heitz 2014 weak white furnace;
+//! exact accounting of the smooth dielectric's R, T and eta^2; Fresnel
+//! against independent f64 complex arithmetic; dispersion; no NaN or
+//! infinity for degenerate inputs. Each check is a function returning
+//! Err(why), and each family has a negative control: the same check run on a
+//! deliberately broken BSDF must return Err.
+
+mod common;
+
+use common::chi2::{Accuracy, SphereGrid};
+use common::{
+    conductor, dielectric, diffuse, dir, dispersive_dielectric, lambda, mirror, rel_diff, spectral_conductor, TestBsdf,
+};
+use glam::{Vec2, Vec3A};
+use prism::materials::fresnel::{fr_conductor, fr_dielectric, refract};
+use prism::materials::{Bsdf, BsdfFlags, BsdfSample, TransportMode, TrowbridgeReitz};
+use prism::sampling::{uniform_sphere, Sampler};
+use prism::spectrum::{SampledSpectrum, SampledWavelengths};
+
+const MODES: [TransportMode; 2] = [TransportMode::Radiance, TransportMode::Importance];
+/// The largest u below 1 that `Sampler::get1d` can return.
+const ONE_MINUS: f32 = 1.0 - 1.0 / (1u32 << 24) as f32;
+
+// ---------------------------------------------------------------- parameter sets
+
+/// A non-delta BSDF with what the quadratures need to know about its lobes.
+struct Rough {
+    name: String,
+    bsdf: Bsdf,
+    alpha_min: f32,
+    /// Relative IOR of a dielectric (None: reflection only).
+    eta: Option<f32>,
+}
+
+fn rough_set() -> Vec<Rough> {
+    let mut v = vec![Rough { name: "diffuse".into(), bsdf: diffuse(0.8), alpha_min: 1.0, eta: None }];
+    for (ax, ay) in [(0.01, 0.01), (0.05, 0.05), (0.2, 0.2), (0.5, 0.5), (1.0, 1.0), (0.3, 0.1), (0.02, 0.5)] {
+        v.push(Rough { name: format!("conductor a=({ax},{ay})"), bsdf: conductor(ax, ay), alpha_min: ax.min(ay), eta: None });
+    }
+    v.push(Rough { name: "spectral conductor a=0.3".into(), bsdf: spectral_conductor(0.3), alpha_min: 0.3, eta: None });
+    for eta in [1.01f32, 1.5, 3.0, 1.0 / 1.5] {
+        for (ax, ay) in [(0.05, 0.05), (0.3, 0.3), (0.8, 0.8), (0.3, 0.1)] {
+            let name = format!("dielectric eta={eta:.3} a=({ax},{ay})");
+            v.push(Rough { name, bsdf: dielectric(eta, ax, ay), alpha_min: ax.min(ay), eta: Some(eta) });
+        }
+    }
+    let hero_eta = match dispersive_dielectric(0.3) {
+        Bsdf::Dielectric(d) => d.eta.eval(lambda().hero()),
+        _ => unreachable!(),
+    };
+    v.push(Rough { name: "dispersive dielectric a=0.3".into(), bsdf: dispersive_dielectric(0.3), alpha_min: 0.3, eta: Some(hero_eta) });
+    v
+}
+
+fn smooth_set() -> Vec<(String, Bsdf)> {
+    vec![
+        ("smooth conductor".into(), conductor(0.0, 0.0)),
+        ("mirror 0.7".into(), mirror(0.7)),
+        ("smooth dielectric 1.5".into(), dielectric(1.5, 0.0, 0.0)),
+        ("smooth dielectric 1/1.5".into(), dielectric(1.0 / 1.5, 0.0, 0.0)),
+        ("dielectric eta=1 rough".into(), dielectric(1.0, 0.5, 0.5)),
+        ("smooth dispersive dielectric".into(), dispersive_dielectric(0.0)),
+    ]
+}
+
+/// Outgoing directions: uniform on the sphere plus poles and grazing ones.
+fn wo_set(n_random: usize, seed: u64) -> Vec<Vec3A> {
+    let mut s = Sampler::new(seed, 1, 0);
+    let mut v: Vec<Vec3A> = (0..n_random).map(|_| uniform_sphere(s.get2d())).collect();
+    for c in [1.0, 0.999, 0.3, 0.02, 1e-3, -1e-3, -0.02, -0.3, -1.0] {
+        v.push(dir(c, 0.77));
+    }
+    v
+}
+
+fn spectra_close(a: SampledSpectrum, b: SampledSpectrum, tol: f32) -> bool {
+    let floor = 1e-6 * a.max_component().abs().max(b.max_component().abs()).max(1e-12);
+    (0..4).all(|i| rel_diff(a[i], b[i], floor) <= tol)
+}
+
+// ---------------------------------------------------------------- sample vs eval/pdf
+
+/// sample() returns eval() and pdf() at its own direction (non-delta), zero
+/// eval/pdf and a probability pdf for delta lobes, flags within flags().
+fn check_sample_consistency(b: &dyn TestBsdf, flags: BsdfFlags, wo: Vec3A, mode: TransportMode, n: usize) -> Result<f32, String> {
+    let mut rng = Sampler::new(17, wo.x.to_bits() as u64, wo.z.to_bits() as u64);
+    let mut worst = 0.0f32;
+    for _ in 0..n {
+        let (uc, u2) = (rng.get1d(), rng.get2d());
+        let Some(s) = b.sample(wo, uc, u2, mode) else { continue };
+        check_sample_sane(&s, wo)?;
+        if flags.0 & s.flags.0 != s.flags.0 {
+            return Err(format!("sample flags {:?} not in {:?}", s.flags, flags));
+        }
+        let (f, pdf) = (b.eval(wo, s.wi, mode), b.pdf(wo, s.wi, mode));
+        if s.is_specular() {
+            if !f.is_black() || pdf != 0.0 || s.pdf > 1.0 {
+                return Err(format!("specular sample: eval {f:?} pdf {pdf} lobe probability {}", s.pdf));
+            }
+            continue;
+        }
+        let d = rel_diff(s.pdf, pdf, 1e-30);
+        worst = worst.max(d);
+        if d > 2e-3 || !spectra_close(s.f, f, 2e-3) {
+            return Err(format!("wo {wo:?} wi {:?}: sample f {:?} pdf {} vs eval {f:?} pdf {pdf}", s.wi, s.f, s.pdf));
+        }
+    }
+    Ok(worst)
+}
+
+fn check_sample_sane(s: &BsdfSample, wo: Vec3A) -> Result<(), String> {
+    let ok = s.f.is_finite()
+        && s.f.min_component() >= 0.0
+        && s.pdf.is_finite()
+        && s.pdf > 0.0
+        && s.wi.is_finite()
+        && (s.wi.length() - 1.0).abs() < 1e-4
+        && s.eta.is_finite()
+        && s.eta > 0.0;
+    if ok {
+        Ok(())
+    } else {
+        Err(format!("wo {wo:?}: bad sample {s:?}"))
+    }
+}
+
+#[test]
+fn sample_agrees_with_eval_and_pdf() {
+    let mut all: Vec<(String, Bsdf)> = rough_set().into_iter().map(|r| (r.name, r.bsdf)).collect();
+    all.extend(smooth_set());
+    for (name, b) in &all {
+        let mut worst = 0.0f32;
+        for wo in wo_set(60, 3) {
+            for mode in MODES {
+                match check_sample_consistency(b, b.flags(), wo, mode, 300) {
+                    Ok(w) => worst = worst.max(w),
+                    Err(e) => panic!("{name} {mode:?}: {e}"),
+                }
+            }
+        }
+        println!("{name:<40} worst relative pdf mismatch {worst:.2e}");
+    }
+}
+
+/// A BSDF whose sample() reports a pdf 1% too high.
+struct PdfOffBsdf(Bsdf);
+impl TestBsdf for PdfOffBsdf {
+    fn eval(&self, wo: Vec3A, wi: Vec3A, mode: TransportMode) -> SampledSpectrum {
+        TestBsdf::eval(&self.0, wo, wi, mode)
+    }
+    fn sample(&self, wo: Vec3A, uc: f32, u2: Vec2, mode: TransportMode) -> Option<BsdfSample> {
+        TestBsdf::sample(&self.0, wo, uc, u2, mode).map(|s| BsdfSample { pdf: s.pdf * 1.01, ..s })
+    }
+    fn pdf(&self, wo: Vec3A, wi: Vec3A, mode: TransportMode) -> f32 {
+        TestBsdf::pdf(&self.0, wo, wi, mode)
+    }
+}
+
+#[test]
+fn negative_control_sample_consistency() {
+    let b = PdfOffBsdf(dielectric(1.5, 0.3, 0.3));
+    let r = check_sample_consistency(&b, b.0.flags(), dir(0.6, 0.2), TransportMode::Radiance, 100);
+    assert!(r.is_err(), "a 1% pdf error was not caught");
+}
+
+// ---------------------------------------------------------------- reciprocity
+
+/// Index of the medium on w's side: 1 outside (z > 0), eta inside.
+fn side_index(w: Vec3A, eta: f32) -> f32 {
+    if w.z > 0.0 {
+        1.0
+    } else {
+        eta
+    }
+}
+
+/// Reflection: f(wo, wi) = f(wi, wo) in both modes. Transmission (Veach 1997
+/// eq. 5.14): f_rad(wo, wi) / eta_o^2 = f_rad(wi, wo) / eta_i^2, importance
+/// mode plain symmetric. Always: f_rad(wo, wi) = f_imp(wi, wo).
+fn check_reciprocity(b: &dyn TestBsdf, eta: f32, pairs: &[(Vec3A, Vec3A)]) -> Result<usize, String> {
+    let (rad, imp) = (TransportMode::Radiance, TransportMode::Importance);
+    let mut nonzero = 0;
+    for &(wo, wi) in pairs {
+        let (f_rad, f_rad_rev) = (b.eval(wo, wi, rad), b.eval(wi, wo, rad));
+        let (f_imp, f_imp_rev) = (b.eval(wo, wi, imp), b.eval(wi, wo, imp));
+        let (eo2, ei2) = (side_index(wo, eta).powi(2), side_index(wi, eta).powi(2));
+        let checks = [
+            ("f_rad(wo,wi)/eta_o^2 = f_rad(wi,wo)/eta_i^2", f_rad / eo2, f_rad_rev / ei2),
+            ("f_imp(wo,wi) = f_imp(wi,wo)", f_imp, f_imp_rev),
+            ("f_rad(wo,wi) = f_imp(wi,wo)", f_rad, f_imp_rev),
+        ];
+        for (what, a, c) in checks {
+            if !spectra_close(a, c, 2e-3) {
+                return Err(format!("{what}: wo {wo:?} wi {wi:?}: {a:?} vs {c:?}"));
+            }
+        }
+        nonzero += !f_rad.is_black() as usize;
+    }
+    Ok(nonzero)
+}
+
+fn direction_pairs(n: usize) -> Vec<(Vec3A, Vec3A)> {
+    let mut s = Sampler::new(5, 6, 7);
+    (0..n).map(|_| (uniform_sphere(s.get2d()), uniform_sphere(s.get2d()))).collect()
+}
+
+/// Pairs where a rough dielectric is nonzero in both directions: wi drawn by
+/// the BSDF itself (so narrow lobes are hit), half of them transmissions.
+fn sampled_pairs(b: &Bsdf, n: usize) -> Vec<(Vec3A, Vec3A)> {
+    let mut s = Sampler::new(8, 9, 10);
+    let l = lambda();
+    (0..n)
+        .filter_map(|_| {
+            let wo = uniform_sphere(s.get2d());
+            b.sample(wo, s.get1d(), s.get2d(), &l, TransportMode::Radiance).map(|x| (wo, x.wi))
+        })
+        .collect()
+}
+
+#[test]
+fn reciprocity_and_adjoint_symmetry() {
+    for r in rough_set() {
+        let mut pairs = direction_pairs(3000);
+        pairs.extend(sampled_pairs(&r.bsdf, 3000));
+        match check_reciprocity(&r.bsdf, r.eta.unwrap_or(1.0), &pairs) {
+            Ok(nonzero) => {
+                println!("{:<40} reciprocal on {} pairs ({nonzero} nonzero)", r.name, pairs.len());
+                assert!(nonzero > 1000, "{}: too few nonzero pairs ({nonzero})", r.name);
+            }
+            Err(e) => panic!("{}: {e}", r.name),
+        }
+    }
+}
+
+/// Radiance mode without the 1/eta'^2 (the importance-mode BTDF used for
+/// both): generalised reciprocity must fail.
+struct NoEta2(Bsdf);
+impl TestBsdf for NoEta2 {
+    fn eval(&self, wo: Vec3A, wi: Vec3A, _mode: TransportMode) -> SampledSpectrum {
+        TestBsdf::eval(&self.0, wo, wi, TransportMode::Importance)
+    }
+    fn sample(&self, wo: Vec3A, uc: f32, u2: Vec2, _mode: TransportMode) -> Option<BsdfSample> {
+        TestBsdf::sample(&self.0, wo, uc, u2, TransportMode::Importance)
+    }
+    fn pdf(&self, wo: Vec3A, wi: Vec3A, mode: TransportMode) -> f32 {
+        TestBsdf::pdf(&self.0, wo, wi, mode)
+    }
+}
+
+/// A reflection that is not reciprocal: f scaled by (1 + 0.01 cos theta_o).
+struct Skewed(Bsdf);
+impl TestBsdf for Skewed {
+    fn eval(&self, wo: Vec3A, wi: Vec3A, mode: TransportMode) -> SampledSpectrum {
+        TestBsdf::eval(&self.0, wo, wi, mode) * (1.0 + 0.01 * wo.z.abs())
+    }
+    fn sample(&self, wo: Vec3A, uc: f32, u2: Vec2, mode: TransportMode) -> Option<BsdfSample> {
+        TestBsdf::sample(&self.0, wo, uc, u2, mode)
+    }
+    fn pdf(&self, wo: Vec3A, wi: Vec3A, mode: TransportMode) -> f32 {
+        TestBsdf::pdf(&self.0, wo, wi, mode)
+    }
+}
+
+#[test]
+fn negative_control_reciprocity() {
+    let glass = dielectric(1.5, 0.3, 0.3);
+    let pairs = sampled_pairs(&glass, 2000);
+    assert!(check_reciprocity(&glass, 1.5, &pairs).is_ok());
+    assert!(check_reciprocity(&NoEta2(glass), 1.5, &pairs).is_err(), "missing eta^2 not caught");
+    assert!(check_reciprocity(&Skewed(conductor(0.3, 0.3)), 1.0, &direction_pairs(2000)).is_err());
+}
+
+// ---------------------------------------------------------------- energy
+
+const Q_T: usize = 40;
+const Q_PHI: usize = 80;
+
+/// Integral over wi of g(wi) |cos theta_i| f(wo, wi), by adaptive cubature on
+/// grids refined around the reflection and transmission lobes.
+fn lobe_quadrature(r: &Rough, wo: Vec3A, g: &dyn Fn(Vec3A) -> f64) -> f64 {
+    let acc = Accuracy::relative(1e-5);
+    let grid = |axis: Vec3A, width: f64| {
+        if width < 0.15 {
+            SphereGrid::for_lobe(axis, width, Q_T, Q_PHI)
+        } else {
+            SphereGrid::equal_area(Q_T, Q_PHI)
+        }
+    };
+    let a = r.alpha_min as f64;
+    let same = |w: Vec3A| if w.z * wo.z > 0.0 { g(w) } else { 0.0 };
+    let reflected = grid(Vec3A::new(-wo.x, -wo.y, wo.z), 2.0 * a).integrate(&same, acc);
+    let Some(eta) = r.eta else { return reflected };
+    let (axis, width) = match refract(wo, Vec3A::Z, eta) {
+        Some((wt, etap)) => (wt, 2.0 * a * (1.0 - 1.0 / etap as f64).abs()),
+        // Total internal reflection at the macro normal: near eta = 1 the
+        // transmitted lobe hugs -wo, otherwise it is spread out.
+        None if (eta - 1.0).abs() < 0.05 => (-wo, 2.0 * a * (eta as f64 - 1.0).abs()),
+        None => (Vec3A::Z, 1.0),
+    };
+    let opposite = |w: Vec3A| if w.z * wo.z < 0.0 { g(w) } else { 0.0 };
+    reflected + grid(axis, width).integrate(&opposite, acc)
+}
+
+/// Directional albedo of the importance-mode BSDF (energy leaving per unit
+/// energy arriving along wo; Veach 1997 §5.2) by quadrature, averaged over the
+/// four wavelengths.
+fn albedo_quadrature(r: &Rough, b: &dyn TestBsdf, wo: Vec3A, mode: TransportMode) -> f64 {
+    lobe_quadrature(r, wo, &|wi| (b.eval(wo, wi, mode).average() * wi.z.abs()) as f64)
+}
+
+/// The same albedo by the BSDF's own sampler, with its standard error.
+fn albedo_sampled(b: &Bsdf, wo: Vec3A, mode: TransportMode, n: usize) -> (f64, f64) {
+    let mut s = Sampler::new(11, 12, 13);
+    let l = lambda();
+    let (mut sum, mut sum2) = (0.0f64, 0.0f64);
+    for _ in 0..n {
+        if let Some(x) = b.sample(wo, s.get1d(), s.get2d(), &l, mode) {
+            let w = (x.f.average() * x.wi.z.abs() / x.pdf) as f64;
+            sum += w;
+            sum2 += w * w;
+        }
+    }
+    let mean = sum / n as f64;
+    (mean, ((sum2 / n as f64 - mean * mean).max(0.0) / n as f64).sqrt())
+}
+
+const ALBEDO_WO: [(f32, f32); 6] = [(1.0, 0.0), (0.7, 0.3), (0.2, 1.3), (0.03, 2.1), (-0.5, 0.9), (-0.05, -2.0)];
+
+fn check_albedo(r: &Rough, b: &dyn TestBsdf, wo: Vec3A) -> Result<f64, String> {
+    let a = albedo_quadrature(r, b, wo, TransportMode::Importance);
+    if !(a <= 1.0 + 2e-3) {
+        return Err(format!("{}: albedo {a} > 1 at wo {wo:?}", r.name));
+    }
+    Ok(a)
+}
+
+#[test]
+fn directional_albedo_at_most_one() {
+    for r in rough_set() {
+        let mut row = Vec::new();
+        for (c, p) in ALBEDO_WO {
+            let wo = dir(c, p);
+            let a = check_albedo(&r, &r.bsdf, wo).unwrap_or_else(|e| panic!("{e}"));
+            // The quadrature must have found every lobe: compare with the
+            // sampler's estimate (a check of the quadrature, not of <= 1).
+            let (m, se) = albedo_sampled(&r.bsdf, wo, TransportMode::Importance, 40_000);
+            assert!((a - m).abs() < 5.0 * se + 2e-3, "{} wo {wo:?}: quadrature {a} vs sampled {m} +- {se}", r.name);
+            row.push(format!("{a:.4}"));
+        }
+        println!("{:<40} albedo at wo.z={:?}: {}", r.name, ALBEDO_WO.map(|x| x.0), row.join(" "));
+    }
+}
+
+/// Torrance-Sparrow without masking-shadowing: gains energy at grazing angles.
+struct NoMasking(Bsdf, TrowbridgeReitz);
+impl TestBsdf for NoMasking {
+    fn eval(&self, wo: Vec3A, wi: Vec3A, mode: TransportMode) -> SampledSpectrum {
+        let g2 = self.1.G2(wo, wi);
+        let f = TestBsdf::eval(&self.0, wo, wi, mode);
+        if g2 > 0.0 {
+            f / g2
+        } else {
+            f
+        }
+    }
+    fn sample(&self, wo: Vec3A, uc: f32, u2: Vec2, mode: TransportMode) -> Option<BsdfSample> {
+        TestBsdf::sample(&self.0, wo, uc, u2, mode)
+    }
+    fn pdf(&self, wo: Vec3A, wi: Vec3A, mode: TransportMode) -> f32 {
+        TestBsdf::pdf(&self.0, wo, wi, mode)
+    }
+}
+
+#[test]
+fn negative_control_albedo() {
+    let r = Rough { name: "conductor a=0.5 without G2".into(), bsdf: conductor(0.5, 0.5), alpha_min: 0.5, eta: None };
+    let broken = NoMasking(r.bsdf.clone(), TrowbridgeReitz::new(0.5, 0.5));
+    assert!(check_albedo(&r, &r.bsdf, dir(0.1, 0.0)).is_ok());
+    let e = check_albedo(&r, &broken, dir(0.1, 0.0));
+    println!("{e:?}");
+    assert!(e.is_err(), "an energy-gaining BRDF was not caught");
+}
+
+/// Delta BSDFs: the albedo is the sum over lobes of f |cos theta_i| (the
+/// delta's coefficient), reached with uc = 0 and uc -> 1.
+fn delta_albedo(b: &Bsdf, wo: Vec3A, mode: TransportMode) -> f32 {
+    let l = lambda();
+    let r = b.sample(wo, 0.0, Vec2::splat(0.5), &l, mode);
+    let t = b.sample(wo, ONE_MINUS, Vec2::splat(0.5), &l, mode);
+    let coeff = |s: &BsdfSample| s.f[0] * s.wi.z.abs();
+    match (r, t) {
+        (Some(r), Some(t)) if r.flags != t.flags => coeff(&r) + coeff(&t),
+        (Some(s), _) | (None, Some(s)) => coeff(&s),
+        (None, None) => 0.0,
+    }
+}
+
+#[test]
+fn lossless_bsdfs_have_albedo_one() {
+    for wo in wo_set(40, 21).into_iter().filter(|w| w.z.abs() > 1e-6) {
+        for mode in MODES {
+            for eta in [1.5f32, 1.0 / 1.5, 1.33, 3.0, 1.0] {
+                let a = delta_albedo(&dielectric(eta, 0.0, 0.0), wo, TransportMode::Importance);
+                assert!((a - 1.0).abs() < 1e-5, "smooth dielectric {eta} importance albedo {a} at {wo:?}");
+            }
+            let a = delta_albedo(&mirror(1.0), wo, mode);
+            assert!((a - 1.0).abs() < 1e-6, "mirror albedo {a}");
+            let a = delta_albedo(&mirror(0.6), wo, mode);
+            assert!((a - 0.6).abs() < 1e-6, "mirror 0.6 albedo {a}: must not depend on the direction");
+            let a = delta_albedo(&conductor(0.0, 0.0), wo, mode);
+            assert!(a > 0.0 && a <= 1.0, "smooth conductor albedo {a}");
+        }
+    }
+}
+
+// ---------------------------------------------------------------- weak white furnace
+
+/// Heitz 2014 §4 (eq. 21): for every wo, the integral over wi of
+/// D(wm) G1(wo) / (4 |cos theta_o|), wm the half vector, is 1 (F = 1, G1
+/// only; the 1/(4 |wo.wm|) Jacobian and the wo.wm projection cancel).
+fn weak_furnace(d: &TrowbridgeReitz, wo: Vec3A, integrand: &dyn Fn(&TrowbridgeReitz, Vec3A, Vec3A) -> f64) -> f64 {
+    let width = 2.0 * d.alpha_x.min(d.alpha_y) as f64;
+    let axis = Vec3A::new(-wo.x, -wo.y, wo.z);
+    let grid = if width < 0.15 { SphereGrid::for_lobe(axis, width, Q_T, Q_PHI) } else { SphereGrid::equal_area(Q_T, Q_PHI) };
+    grid.integrate(&|wi| integrand(d, wo, wi), Accuracy::relative(1e-6))
+}
+
+fn half_vector(wo: Vec3A, wi: Vec3A) -> Option<Vec3A> {
+    (wo + wi).try_normalize()
+}
+
+fn furnace_integrand(d: &TrowbridgeReitz, wo: Vec3A, wi: Vec3A) -> f64 {
+    half_vector(wo, wi).map_or(0.0, |wm| (d.D(wm) * d.G1(wo) / (4.0 * wo.z.abs())) as f64)
+}
+
+const FURNACE_ALPHAS: [(f32, f32); 7] = [(0.05, 0.05), (0.1, 0.1), (0.3, 0.3), (0.6, 0.6), (1.0, 1.0), (0.3, 0.1), (0.05, 0.8)];
+const FURNACE_WO: [(f32, f32); 5] = [(1.0, 0.0), (0.8, 0.5), (0.5, 1.9), (0.2, -0.7), (0.05, 3.0)];
+
+#[test]
+fn weak_white_furnace() {
+    for (ax, ay) in FURNACE_ALPHAS {
+        let d = TrowbridgeReitz::new(ax, ay);
+        let row: Vec<String> = FURNACE_WO
+            .iter()
+            .map(|&(c, p)| {
+                let v = weak_furnace(&d, dir(c, p), &furnace_integrand);
+                assert!((v - 1.0).abs() < 2e-3, "alpha ({ax},{ay}) wo.z={c}: weak furnace {v}");
+                // The visible normal pdf integrates to 1 over wm as well.
+                format!("{v:.5}")
+            })
+            .collect();
+        println!("alpha=({ax},{ay}) weak furnace at wo.z={:?}: {}", FURNACE_WO.map(|x| x.0), row.join(" "));
+    }
+}
+
+#[test]
+fn negative_control_weak_furnace() {
+    let d = TrowbridgeReitz::new(0.6, 0.6);
+    let wo = dir(0.5, 1.9);
+    let no_g1 = |d: &TrowbridgeReitz, wo: Vec3A, wi: Vec3A| {
+        half_vector(wo, wi).map_or(0.0, |wm| (d.D(wm) / (4.0 * wo.z.abs())) as f64)
+    };
+    let wrong_jacobian = |d: &TrowbridgeReitz, wo: Vec3A, wi: Vec3A| furnace_integrand(d, wo, wi) * 2.0;
+    let (a, b) = (weak_furnace(&d, wo, &no_g1), weak_furnace(&d, wo, &wrong_jacobian));
+    println!("without G1: {a:.4}, with 1/(2|wo.wm|): {b:.4}");
+    assert!((a - 1.0).abs() > 0.05 && (b - 1.0).abs() > 0.05);
+}
+
+/// D is a density of normals per unit projected area: integral of
+/// D(wm) cos theta_m over the hemisphere is 1 (Heitz 2014 eq. 4).
+#[test]
+fn ndf_projected_area_is_one() {
+    for (ax, ay) in FURNACE_ALPHAS {
+        let d = TrowbridgeReitz::new(ax, ay);
+        let width = 2.0 * ax.min(ay) as f64;
+        let grid = SphereGrid::for_lobe(Vec3A::Z, width.min(0.5), Q_T, Q_PHI);
+        let v = grid.integrate(&|wm| (d.D(wm) * wm.z.max(0.0)) as f64, Accuracy::relative(1e-6));
+        assert!((v - 1.0).abs() < 1e-3, "alpha ({ax},{ay}): {v}");
+    }
+}
+
+// ---------------------------------------------------------------- smooth dielectric accounting
+
+/// For a smooth dielectric: the reflection lobe has probability R and weight
+/// 1; transmission has probability T = 1 - R and weight 1/eta'^2 in radiance
+/// mode, 1 in importance mode; eta' is reported; Snell's law holds.
+fn check_smooth_dielectric(b: &dyn TestBsdf, eta: f32, wo: Vec3A) -> Result<(), String> {
+    let r = fr_dielectric(wo.z, eta);
+    for mode in MODES {
+        let mut expected_weight = 0.0;
+        let mut total = 0.0;
+        if r > 0.0 {
+            let s = b.sample(wo, 0.0, Vec2::ZERO, mode).ok_or("no reflection")?;
+            let w = s.f[0] * s.wi.z.abs() / s.pdf;
+            if s.flags != BsdfFlags::SPECULAR_REFLECTION || (s.pdf - r).abs() > 1e-6 || (w - 1.0).abs() > 1e-5 {
+                return Err(format!("reflection {s:?}: weight {w}, R = {r}"));
+            }
+            if s.eta != 1.0 || (s.wi - Vec3A::new(-wo.x, -wo.y, wo.z)).length() > 1e-6 {
+                return Err(format!("reflection direction/eta {s:?}"));
+            }
+            total += s.pdf * w;
+            expected_weight += r;
+        }
+        if r < 1.0 {
+            let s = b.sample(wo, ONE_MINUS, Vec2::ZERO, mode).ok_or("no transmission")?;
+            let etap = if wo.z > 0.0 { eta } else { 1.0 / eta };
+            let w = s.f[0] * s.wi.z.abs() / s.pdf;
+            let want = if mode == TransportMode::Radiance { 1.0 / (etap * etap) } else { 1.0 };
+            if s.flags != BsdfFlags::SPECULAR_TRANSMISSION || (s.pdf - (1.0 - r)).abs() > 1e-6 || rel_diff(w, want, 1e-9) > 1e-5 {
+                return Err(format!("{mode:?} transmission {s:?}: weight {w}, want {want}, T = {}", 1.0 - r));
+            }
+            let sin_o = (1.0 - wo.z * wo.z).max(0.0).sqrt();
+            let sin_i = (1.0 - s.wi.z * s.wi.z).max(0.0).sqrt();
+            let opposite = wo.x * s.wi.x + wo.y * s.wi.y <= 1e-6;
+            if (s.eta - etap).abs() > 1e-6 || (sin_i * etap - sin_o).abs() > 1e-4 || s.wi.z * wo.z >= 0.0 || !opposite {
+                return Err(format!("refraction {s:?} of wo {wo:?} breaks Snell's law (eta' = {etap})"));
+            }
+            total += s.pdf * w;
+            expected_weight += (1.0 - r) * want;
+        }
+        if (total - expected_weight).abs() > 1e-5 {
+            return Err(format!("{mode:?}: expected throughput {total} != R + T w_T = {expected_weight}"));
+        }
+    }
+    Ok(())
+}
+
+#[test]
+fn smooth_dielectric_accounting() {
+    for eta in [1.5f32, 1.0 / 1.5, 1.33, 3.0, 1.0, 1.0001] {
+        for wo in wo_set(50, 31).into_iter().filter(|w| w.z.abs() > 1e-4) {
+            check_smooth_dielectric(&dielectric(eta, 0.0, 0.0), eta, wo).unwrap_or_else(|e| panic!("eta {eta}: {e}"));
+        }
+    }
+    // Total internal reflection: R = 1, always reflected, weight 1.
+    let s = dielectric(1.5, 0.0, 0.0).sample(dir(-0.3, 0.0), ONE_MINUS, Vec2::ZERO, &lambda(), TransportMode::Radiance);
+    assert!(s.is_some_and(|s| s.flags == BsdfFlags::SPECULAR_REFLECTION && s.pdf == 1.0));
+    // eta = 1 at any roughness: a pass-through, wi = -wo, weight 1.
+    for b in [dielectric(1.0, 0.0, 0.0), dielectric(1.0, 0.7, 0.2)] {
+        for wo in wo_set(50, 32).into_iter().filter(|w| w.z.abs() > 1e-4) {
+            let s = b.sample(wo, 0.0, Vec2::splat(0.3), &lambda(), TransportMode::Radiance).unwrap();
+            assert!((s.wi + wo).length() < 1e-5 && (s.f[0] * s.wi.z.abs() / s.pdf - 1.0).abs() < 1e-5, "{s:?}");
+            assert_eq!(b.flags(), BsdfFlags::SPECULAR_TRANSMISSION);
+        }
+    }
+}
+
+/// eta^2 applied in importance mode too: the importance weight is not 1.
+#[test]
+fn negative_control_smooth_dielectric() {
+    struct Eta2Always(Bsdf);
+    impl TestBsdf for Eta2Always {
+        fn eval(&self, wo: Vec3A, wi: Vec3A, mode: TransportMode) -> SampledSpectrum {
+            TestBsdf::eval(&self.0, wo, wi, mode)
+        }
+        fn sample(&self, wo: Vec3A, uc: f32, u2: Vec2, _mode: TransportMode) -> Option<BsdfSample> {
+            TestBsdf::sample(&self.0, wo, uc, u2, TransportMode::Radiance)
+        }
+        fn pdf(&self, wo: Vec3A, wi: Vec3A, mode: TransportMode) -> f32 {
+            TestBsdf::pdf(&self.0, wo, wi, mode)
+        }
+    }
+    let glass = dielectric(1.5, 0.0, 0.0);
+    assert!(check_smooth_dielectric(&glass, 1.5, dir(0.6, 0.1)).is_ok());
+    assert!(check_smooth_dielectric(&Eta2Always(glass), 1.5, dir(0.6, 0.1)).is_err());
+}
+
+/// The rough dielectric applies eta'^2 the same way: f_rad = f_imp / eta'^2
+/// for transmission, equal for reflection.
+#[test]
+fn rough_transmission_eta2_only_in_radiance_mode() {
+    for eta in [1.5f32, 1.0 / 1.5] {
+        let b = dielectric(eta, 0.3, 0.3);
+        for (wo, wi) in sampled_pairs(&b, 2000) {
+            let l = lambda();
+            let fr = b.eval(wo, wi, &l, TransportMode::Radiance)[0];
+            let fi = b.eval(wo, wi, &l, TransportMode::Importance)[0];
+            let etap = if wo.z * wi.z > 0.0 { 1.0 } else { side_index(wi, eta) / side_index(wo, eta) };
+            assert!(rel_diff(fr * etap * etap, fi, 1e-30) < 1e-5, "eta {eta} wo {wo:?} wi {wi:?}: {fr} {fi}");
+            let s = b.sample(wo, 0.999, Vec2::splat(0.4), &l, TransportMode::Radiance);
+            if let Some(s) = s.filter(|s| s.flags.is_transmission()) {
+                assert!((s.eta - if wo.z > 0.0 { eta } else { 1.0 / eta }).abs() < 1e-6);
+            }
+        }
+    }
+}
+
+// ---------------------------------------------------------------- Fresnel
+
+/// Complex numbers in f64, for an independent reference.
+#[derive(Clone, Copy, Debug)]
+struct C(f64, f64);
+impl C {
+    fn add(self, o: C) -> C {
+        C(self.0 + o.0, self.1 + o.1)
+    }
+    fn sub(self, o: C) -> C {
+        C(self.0 - o.0, self.1 - o.1)
+    }
+    fn mul(self, o: C) -> C {
+        C(self.0 * o.0 - self.1 * o.1, self.0 * o.1 + self.1 * o.0)
+    }
+    fn div(self, o: C) -> C {
+        let d = o.0 * o.0 + o.1 * o.1;
+        C((self.0 * o.0 + self.1 * o.1) / d, (self.1 * o.0 - self.0 * o.1) / d)
+    }
+    fn sqrt(self) -> C {
+        let r = (self.0 * self.0 + self.1 * self.1).sqrt();
+        let re = ((r + self.0) / 2.0).sqrt();
+        let im = ((r - self.0) / 2.0).sqrt().copysign(self.1);
+        C(re, im)
+    }
+    fn norm(self) -> f64 {
+        self.0 * self.0 + self.1 * self.1
+    }
+}
+
+/// Fresnel equations with a complex relative index n (Born & Wolf §14.2).
+fn fresnel_complex(cos_i: f64, n: C) -> f64 {
+    let ci = C(cos_i, 0.0);
+    let sin2 = C(1.0 - cos_i * cos_i, 0.0);
+    let ct = C(1.0, 0.0).sub(sin2.div(n.mul(n))).sqrt();
+    let rs = ci.sub(n.mul(ct)).div(ci.add(n.mul(ct)));
+    let rp = n.mul(ci).sub(ct).div(n.mul(ci).add(ct));
+    0.5 * (rs.norm() + rp.norm())
+}
+
+#[test]
+fn fresnel_matches_complex_reference() {
+    let metals = [(0.13, 3.6), (0.2, 3.9), (1.1, 2.6), (2.9, 3.0), (0.05, 0.5), (1.5, 0.0), (0.6, 0.0)];
+    for &(eta, k) in &metals {
+        for i in 0..=200 {
+            let c = i as f32 / 200.0;
+            let got = fr_conductor(c, SampledSpectrum::splat(eta), SampledSpectrum::splat(k))[0];
+            let want = fresnel_complex(c as f64, C(eta as f64, k as f64));
+            assert!((got as f64 - want).abs() < 2e-5, "eta {eta} k {k} cos {c}: {got} vs {want}");
+        }
+    }
+    for eta in [1.5f32, 1.0 / 1.5, 1.33, 2.4, 1.01] {
+        for i in -200..=200 {
+            let c = i as f32 / 200.0;
+            let got = fr_dielectric(c, eta) as f64;
+            let (cc, n) = if c >= 0.0 { (c as f64, eta as f64) } else { (-c as f64, 1.0 / eta as f64) };
+            // Beyond the critical angle the complex formula gives |r| = 1.
+            let want = fresnel_complex(cc, C(n, 0.0)).min(1.0);
+            assert!((got - want).abs() < 2e-5, "eta {eta} cos {c}: {got} vs {want}");
+            // Reversibility: the same R from the other side at the refracted angle.
+            if let Some((wt, _)) = refract(dir(c, 0.4), Vec3A::Z, eta) {
+                let back = fr_dielectric(wt.z, eta) as f64;
+                assert!((got - back).abs() < 1e-4, "eta {eta} cos {c}: R {got} vs reversed {back}");
+            }
+        }
+    }
+}
+
+#[test]
+fn conductor_is_spectral_per_wavelength() {
+    let b = spectral_conductor(0.3);
+    let l = lambda();
+    let (wo, wi) = (dir(0.8, 0.1), dir(0.7, 3.0));
+    let f = b.eval(wo, wi, &l, TransportMode::Radiance);
+    assert!(f.max_component() > 1.05 * f.min_component(), "conductor f does not vary with wavelength: {f:?}");
+    assert!(!b.is_dispersive() && !conductor(0.0, 0.0).is_dispersive());
+}
+
+// ---------------------------------------------------------------- dispersion
+
+#[test]
+fn dispersive_dielectric_uses_the_hero_wavelength() {
+    let b = dispersive_dielectric(0.0);
+    assert!(b.is_dispersive() && !dielectric(1.5, 0.0, 0.0).is_dispersive());
+    let wo = dir(0.6, 0.0);
+    let blue = SampledWavelengths::sample_visible(0.05);
+    let red = SampledWavelengths::sample_visible(0.9);
+    let sb = b.sample(wo, ONE_MINUS, Vec2::ZERO, &blue, TransportMode::Radiance).unwrap();
+    let sr = b.sample(wo, ONE_MINUS, Vec2::ZERO, &red, TransportMode::Radiance).unwrap();
+    assert!(blue.hero() < red.hero() && sb.eta > sr.eta, "{} {} {} {}", blue.hero(), red.hero(), sb.eta, sr.eta);
+    assert!((sb.wi - sr.wi).length() > 1e-4, "the refracted direction does not depend on the hero wavelength");
+    assert!(sb.f[0] > 0.0 && sb.f[1] == 0.0 && sb.f[2] == 0.0 && sb.f[3] == 0.0, "{:?}", sb.f);
+    let rough = dispersive_dielectric(0.3);
+    let (wo, wi) = (dir(0.7, 0.0), dir(-0.8, 3.0));
+    let f = rough.eval(wo, wi, &blue, TransportMode::Radiance);
+    assert!(f[0] > 0.0 && f[1] == 0.0 && f[2] == 0.0 && f[3] == 0.0, "{f:?}");
+}
+
+// ---------------------------------------------------------------- robustness
+
+fn degenerate_bsdfs() -> Vec<(String, Bsdf)> {
+    let mut v: Vec<(String, Bsdf)> = vec![];
+    let alphas = [(0.0, 0.0), (1e-4, 1e-4), (1e-3, 1e-3), (1.0, 0.0), (0.0, 1.0), (1e-3, 1.0), (2.0, 2.0), (0.3, 0.1)];
+    for (ax, ay) in alphas {
+        v.push((format!("conductor ({ax},{ay})"), conductor(ax, ay)));
+        for eta in [1.0f32, 1.0001, 1.5, 1.0 / 3.0, 3.0] {
+            v.push((format!("dielectric {eta} ({ax},{ay})"), dielectric(eta, ax, ay)));
+        }
+    }
+    v.extend([
+        ("diffuse".into(), diffuse(1.0)),
+        ("mirror".into(), mirror(1.0)),
+        ("dispersive".into(), dispersive_dielectric(0.2)),
+        ("spectral conductor".into(), spectral_conductor(0.0)),
+    ]);
+    v
+}
+
+fn degenerate_directions() -> Vec<Vec3A> {
+    let mut v = vec![Vec3A::X, Vec3A::Y, -Vec3A::X, Vec3A::Z, -Vec3A::Z];
+    for z in [1.0f32, 0.5, 1e-3, 1e-7, 0.0, -0.0, -1e-7, -1e-3, -0.5, -1.0] {
+        for phi in [0.0f32, 0.8, 2.5] {
+            v.push(dir(z, phi));
+        }
+    }
+    v
+}
+
+fn check_finite(b: &Bsdf, l: &SampledWavelengths) -> Result<(), String> {
+    let dirs = degenerate_directions();
+    let us = [0.0, 1e-7, 0.25, 0.5, 0.75, ONE_MINUS];
+    for &wo in &dirs {
+        for mode in MODES {
+            for &wi in &dirs {
+                let (f, p) = (b.eval(wo, wi, l, mode), b.pdf(wo, wi, l, mode));
+                if !f.is_finite() || f.min_component() < 0.0 || !p.is_finite() || p < 0.0 {
+                    return Err(format!("wo {wo:?} wi {wi:?} {mode:?}: f {f:?} pdf {p}"));
+                }
+            }
+            for &uc in &us {
+                for &ux in &us {
+                    for &uy in &us {
+                        if let Some(s) = b.sample(wo, uc, Vec2::new(ux, uy), l, mode) {
+                            check_sample_sane(&s, wo)?;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+#[test]
+fn no_nan_or_infinity_for_degenerate_inputs() {
+    let l = lambda();
+    for (name, b) in degenerate_bsdfs() {
+        check_finite(&b, &l).unwrap_or_else(|e| panic!("{name}: {e}"));
+    }
+}
+
+#[test]
+fn flags_describe_the_lobes() {
+    use BsdfFlags as F;
+    assert_eq!(diffuse(0.5).flags(), F::DIFFUSE_REFLECTION);
+    assert_eq!(conductor(0.0, 0.0).flags(), F::SPECULAR_REFLECTION);
+    assert_eq!(conductor(0.2, 0.2).flags(), F::GLOSSY_REFLECTION);
+    assert_eq!(mirror(1.0).flags(), F::SPECULAR_REFLECTION);
+    assert_eq!(dielectric(1.5, 0.0, 0.0).flags(), F::SPECULAR_REFLECTION | F::SPECULAR_TRANSMISSION);
+    assert_eq!(dielectric(1.5, 0.2, 0.2).flags(), F::GLOSSY_REFLECTION | F::GLOSSY_TRANSMISSION);
+    assert_eq!(dielectric(1.0, 0.2, 0.2).flags(), F::SPECULAR_TRANSMISSION);
+    assert!(TrowbridgeReitz::new(9e-4, 9e-4).effectively_smooth() && !TrowbridgeReitz::new(1e-3, 0.0).effectively_smooth());
+    assert_eq!(prism::materials::roughness_to_alpha(0.5), 0.25);
+}

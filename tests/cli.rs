@@ -1,0 +1,117 @@
+//! The command line: clear errors with a non-zero exit for bad input, no
+//! output file left behind (or clobbered) on failure, and a working render.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn prism(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_prism")).args(args).current_dir(env!("CARGO_MANIFEST_DIR")).output().unwrap()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).to_string()
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("prism-cli-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn write(dir: &Path, name: &str, text: &str) -> String {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p.display().to_string()
+}
+
+const GOOD: &str = r#"{
+  "camera": {"position": [0, 0, -3], "look_at": [0, 0, 0], "fov": 40, "width": 8, "height": 8},
+  "materials": {"white": {"type": "diffuse", "reflectance": 0.5}},
+  "objects": [{"shape": {"type": "sphere", "center": [0, 0, 0], "radius": 1}, "material": "white"}],
+  "lights": [{"type": "environment", "radiance": 1.0}]
+}
+"#;
+
+#[test]
+fn renders_exr_png_and_sidecar() {
+    let d = temp_dir("ok");
+    let scene = write(&d, "s.json", GOOD);
+    let out = d.join("img.exr");
+    let png = d.join("img.png");
+    let o = prism(&["render", &scene, "--spp", "2", "--out", out.to_str().unwrap(), "--png", png.to_str().unwrap(), "--quiet"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(out.exists() && png.exists());
+    let sidecar: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join("img.json")).unwrap()).unwrap();
+    assert_eq!(sidecar["spp"], 2);
+    assert_eq!(sidecar["integrator"], "path");
+    assert!(sidecar["rays"].as_u64().unwrap() > 0);
+    assert_eq!(sidecar["dropped_samples"]["nan"], 0);
+}
+
+#[test]
+fn unknown_integrator_lists_the_valid_ones() {
+    let d = temp_dir("integrator");
+    let scene = write(&d, "s.json", GOOD);
+    let out = d.join("x.exr");
+    let o = prism(&["render", &scene, "--integrator", "magic", "--out", out.to_str().unwrap(), "--quiet"]);
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(e.contains("unknown integrator \"magic\"") && e.contains("path") && e.contains("simple_path"), "{e}");
+    assert!(!out.exists());
+}
+
+#[test]
+fn missing_scene_file_names_it() {
+    let o = prism(&["render", "no/such/scene.json", "--out", "/tmp/never.exr"]);
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(e.contains("no/such/scene.json") && e.contains("cannot read"), "{e}");
+}
+
+/// Each bad scene gives file:line:col: field: message, and a non-zero exit.
+#[test]
+fn bad_scenes_name_file_line_and_field() {
+    let cases: &[(&str, &str, &str)] = &[
+        // (scene text, expected position, expected words)
+        ("{\n  \"camera\": {\"position\": [0, 0, -3],,}\n}", ":2:", "expected"),
+        (&GOOD.replace("\"fov\": 40", "\"fov\": \"wide\""), ":2:", "camera.fov"),
+        (&GOOD.replace("\"material\": \"white\"", "\"material\": \"whte\""), ":4:", "objects[0].material: unknown material \"whte\""),
+        (&GOOD.replace("\"reflectance\": 0.5", "\"reflectance\": \"nosuch\""), ":3:", "materials.white.reflectance: unknown spectrum \"nosuch\""),
+        (&GOOD.replace("\"reflectance\": 0.5", "\"reflectanse\": 0.5"), ":3:", "unknown field `reflectanse`"),
+        (&GOOD.replace("\"radius\": 1", "\"radius\": 1e999"), ":4:", "objects[0].shape"),
+        (&GOOD.replace("\"radius\": 1", "\"radius\": -1"), ":4:", "objects[0].shape.radius"),
+    ];
+    let d = temp_dir("bad");
+    for (i, (text, pos, words)) in cases.iter().enumerate() {
+        let scene = write(&d, &format!("bad{i}.json"), text);
+        let out = d.join(format!("bad{i}.exr"));
+        let o = prism(&["render", &scene, "--out", out.to_str().unwrap(), "--quiet"]);
+        let e = stderr(&o);
+        assert!(!o.status.success(), "case {i} succeeded");
+        assert!(e.contains(&format!("bad{i}.json{pos}")), "case {i}: position missing in {e}");
+        assert!(e.contains(words), "case {i}: expected {words:?} in {e}");
+        assert!(!out.exists(), "case {i} left an output file");
+    }
+}
+
+#[test]
+fn failed_render_leaves_existing_output_untouched() {
+    let d = temp_dir("keep");
+    let out = d.join("keep.exr");
+    std::fs::write(&out, b"previous").unwrap();
+    let scene = write(&d, "bad.json", "{ not json");
+    let o = prism(&["render", &scene, "--out", out.to_str().unwrap(), "--quiet"]);
+    assert!(!o.status.success());
+    assert_eq!(std::fs::read(&out).unwrap(), b"previous");
+    let o = prism(&["render", &write(&d, "s.json", GOOD), "--out", "/no/such/dir/x.exr", "--quiet"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("/no/such/dir"), "{}", stderr(&o));
+}
+
+#[test]
+fn integrators_are_listed() {
+    let o = prism(&["integrators"]);
+    assert!(o.status.success());
+    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(s.contains("path") && s.contains("simple_path"), "{s}");
+}

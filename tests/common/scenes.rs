@@ -1,0 +1,37 @@
+//! Scene loading for integration tests: the repository's scene files at a
+//! test resolution.
+#![allow(dead_code)]
+
+use prism::integrators::{self, Integrator, IntegratorOptions};
+use prism::scene::{load_scene, parse_scene, Scene};
+use prism::spectrum::{spectrum_to_xyz, xyz_to_linear_srgb, Spectrum};
+use std::path::Path;
+
+/// Loads `scenes/<name>` at `width` x `height`.
+pub fn scene(name: &str, width: u32, height: u32) -> Scene {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(name);
+    let mut b = load_scene(&path).unwrap_or_else(|e| panic!("{e}"));
+    b.set_resolution(width, height);
+    b.build()
+}
+
+/// Loads a scene file after replacing `from` by `to` in its text (for
+/// variants such as a biased albedo in negative controls).
+pub fn scene_variant(name: &str, width: u32, height: u32, from: &str, to: &str) -> Scene {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(name);
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(text.contains(from), "{name} does not contain {from:?}");
+    let text = text.replace(from, to);
+    let mut b = parse_scene(&text, name, path.parent().unwrap()).unwrap_or_else(|e| panic!("{e}"));
+    b.set_resolution(width, height);
+    b.build()
+}
+
+pub fn integrator(name: &str) -> Box<dyn Integrator> {
+    integrators::create(name, &IntegratorOptions::default()).unwrap()
+}
+
+/// Linear sRGB of a spectrum's exact colour (1 nm sums).
+pub fn srgb_of(s: &Spectrum) -> [f64; 3] {
+    xyz_to_linear_srgb(spectrum_to_xyz(s)).to_array().map(f64::from)
+}
