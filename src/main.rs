@@ -3,8 +3,8 @@
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 use prism::film::{self, DroppedSamples, Film};
-use prism::integrators::{self, IntegratorOptions, INTEGRATORS};
-use prism::render::{render, RenderOptions};
+use prism::integrators::{self, IntegratorOptions, MisHeuristic, INTEGRATORS};
+use prism::render::{render, render_with_strategies, RenderOptions, StrategyImages};
 use prism::scene::load_scene;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -67,6 +67,13 @@ struct RenderArgs {
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
+    /// MIS heuristic of bdpt: power, balance or uniform.
+    #[arg(long, default_value = "power")]
+    mis: MisHeuristic,
+    /// Also write one EXR per BDPT strategy (s, t), weighted and unweighted,
+    /// into this directory (created if missing; bdpt only).
+    #[arg(long, value_name = "DIR")]
+    strategies: Option<PathBuf>,
 }
 
 /// The JSON sidecar written next to every EXR.
@@ -140,7 +147,14 @@ fn render_command(a: RenderArgs) -> Result<()> {
     }
     let seed = a.seed.or(defaults.seed).unwrap_or(0);
     let max_depth = a.max_depth.or(defaults.max_depth).unwrap_or(IntegratorOptions::default().max_depth);
-    let integrator = integrators::create(&name, &IntegratorOptions { max_depth }).map_err(anyhow::Error::msg)?;
+    let integrator = integrators::create(&name, &IntegratorOptions { max_depth, mis: a.mis }).map_err(anyhow::Error::msg)?;
+    if let Some(dir) = &a.strategies {
+        if name != "bdpt" {
+            bail!("--strategies needs --integrator bdpt (got {name})");
+        }
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        check_writable(&dir.join("s0_t2_weighted.exr"))?;
+    }
     if a.width.is_some() || a.height.is_some() {
         let (w, h) = (a.width.unwrap_or(0), a.height.unwrap_or(0));
         if w == 0 || h == 0 {
@@ -162,9 +176,17 @@ fn render_command(a: RenderArgs) -> Result<()> {
     let (w, h) = (scene.camera.width, scene.camera.height);
     let mut film = Film::new(w, h);
     let opts = RenderOptions { seed, threads: a.threads, progress: !a.quiet };
-    let stats = render(&scene, integrator.as_ref(), &opts, &mut film, 0..spp);
+    let mut strategies = a.strategies.as_ref().map(|_| StrategyImages::new(w, h));
+    let stats = match strategies.as_mut() {
+        Some(images) => render_with_strategies(&scene, integrator.as_ref(), &opts, &mut film, 0..spp, images),
+        None => render(&scene, integrator.as_ref(), &opts, &mut film, 0..spp),
+    };
     let image = film.image();
     film::write_exr(&a.out, w, h, &image)?;
+    if let (Some(dir), Some(images)) = (&a.strategies, &strategies) {
+        let written = images.write_exrs(dir)?;
+        eprintln!("wrote {} per-strategy images to {}", written.len(), dir.display());
+    }
     if let Some(png) = &a.png {
         film::write_png(png, w, h, &image, a.exposure)?;
     }

@@ -178,8 +178,14 @@ fn side_index(w: Vec3A, eta: f32) -> f32 {
 }
 
 /// Reflection: f(wo, wi) = f(wi, wo) in both modes. Transmission (Veach 1997
-/// eq. 5.14): f_rad(wo, wi) / eta_o^2 = f_rad(wi, wo) / eta_i^2, importance
-/// mode plain symmetric. Always: f_rad(wo, wi) = f_imp(wi, wo).
+/// §5.2, eq. 5.14): f_rad(wo, wi) / eta_o^2 = f_rad(wi, wo) / eta_i^2, and
+/// so f_imp(wo, wi) eta_o^2 = f_imp(wi, wo) eta_i^2, eta_o (eta_i) the index
+/// on wo's (wi's) side. Always the adjoint: f_rad(wo, wi) = f_imp(wi, wo).
+///
+/// Tolerance: relative 2e-3 plus 1e-6 absolute. Near the critical angle the
+/// Fresnel T has infinite slope, and computed from the denser side's cosine
+/// (f32, ~1 ulp) it carries a relative error of percents, but there T, and f,
+/// are ~1e-8.
 fn check_reciprocity(b: &dyn TestBsdf, eta: f32, pairs: &[(Vec3A, Vec3A)]) -> Result<usize, String> {
     let (rad, imp) = (TransportMode::Radiance, TransportMode::Importance);
     let mut nonzero = 0;
@@ -189,11 +195,11 @@ fn check_reciprocity(b: &dyn TestBsdf, eta: f32, pairs: &[(Vec3A, Vec3A)]) -> Re
         let (eo2, ei2) = (side_index(wo, eta).powi(2), side_index(wi, eta).powi(2));
         let checks = [
             ("f_rad(wo,wi)/eta_o^2 = f_rad(wi,wo)/eta_i^2", f_rad / eo2, f_rad_rev / ei2),
-            ("f_imp(wo,wi) = f_imp(wi,wo)", f_imp, f_imp_rev),
+            ("f_imp(wo,wi) eta_o^2 = f_imp(wi,wo) eta_i^2", f_imp * eo2, f_imp_rev * ei2),
             ("f_rad(wo,wi) = f_imp(wi,wo)", f_rad, f_imp_rev),
         ];
         for (what, a, c) in checks {
-            if !spectra_close(a, c, 2e-3) {
+            if (0..4).any(|k| (a[k] - c[k]).abs() > 2e-3 * a[k].abs().max(c[k].abs()) + 1e-6) {
                 return Err(format!("{what}: wo {wo:?} wi {wi:?}: {a:?} vs {c:?}"));
             }
         }
@@ -630,7 +636,7 @@ fn fresnel_complex(cos_i: f64, n: C) -> f64 {
 
 #[test]
 fn fresnel_matches_complex_reference() {
-    let metals = [(0.13, 3.6), (0.2, 3.9), (1.1, 2.6), (2.9, 3.0), (0.05, 0.5), (1.5, 0.0), (0.6, 0.0)];
+    let metals = [(0.13, 3.6), (0.2, 3.9), (1.1, 2.6), (2.9, 3.0), (0.05, 0.5), (1.5, 0.0), (0.55, 0.0)];
     for &(eta, k) in &metals {
         for i in 0..=200 {
             let c = i as f32 / 200.0;
@@ -647,8 +653,11 @@ fn fresnel_matches_complex_reference() {
             // Beyond the critical angle the complex formula gives |r| = 1.
             let want = fresnel_complex(cc, C(n, 0.0)).min(1.0);
             assert!((got - want).abs() < 2e-5, "eta {eta} cos {c}: {got} vs {want}");
-            // Reversibility: the same R from the other side at the refracted angle.
-            if let Some((wt, _)) = refract(dir(c, 0.4), Vec3A::Z, eta) {
+            // Reversibility: the same R from the other side at the refracted
+            // angle (away from grazing and critical angles, where R has
+            // infinite slope and f32 rounding dominates).
+            let refracted = refract(dir(c, 0.4), Vec3A::Z, eta).filter(|(wt, _)| wt.z.abs() > 0.05 && c.abs() > 0.05);
+            if let Some((wt, _)) = refracted {
                 let back = fr_dielectric(wt.z, eta) as f64;
                 assert!((got - back).abs() < 1e-4, "eta {eta} cos {c}: R {got} vs reversed {back}");
             }

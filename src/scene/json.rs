@@ -9,7 +9,7 @@
 use super::locate::{locate, path_string, Seg};
 use super::{SceneBuilder, RenderDefaults};
 use crate::camera::Camera;
-use crate::materials::{Bsdf, Diffuse};
+use crate::materials::{roughness_to_alpha, Bsdf, Conductor, Dielectric, Diffuse, Mirror};
 use crate::shapes::Mesh;
 use crate::spectrum::{self, Spectrum};
 use glam::{Affine3A, Quat, Vec3, Vec3A};
@@ -95,6 +95,50 @@ struct RenderSpec {
 #[serde(tag = "type", rename_all = "snake_case")]
 enum MaterialSpec {
     Diffuse(DiffuseSpec),
+    Conductor(ConductorSpec),
+    Dielectric(DielectricSpec),
+    Mirror(MirrorSpec),
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ConductorSpec {
+    #[serde(default)]
+    metal: Option<String>,
+    #[serde(default)]
+    eta: Option<SpectrumSpec>,
+    #[serde(default)]
+    k: Option<SpectrumSpec>,
+    roughness: Option<f32>,
+    alpha: Option<f32>,
+    alpha_x: Option<f32>,
+    alpha_y: Option<f32>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DielectricSpec {
+    #[serde(default = "default_ior")]
+    ior: SpectrumSpec,
+    roughness: Option<f32>,
+    alpha: Option<f32>,
+    alpha_x: Option<f32>,
+    alpha_y: Option<f32>,
+}
+
+fn default_ior() -> SpectrumSpec {
+    SpectrumSpec::Constant(1.5)
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MirrorSpec {
+    #[serde(default = "one")]
+    reflectance: SpectrumSpec,
+}
+
+fn one() -> SpectrumSpec {
+    SpectrumSpec::Constant(1.0)
 }
 
 #[derive(Deserialize)]
@@ -333,6 +377,8 @@ enum Use {
     Reflectance,
     Emission,
     Ior,
+    /// No built-in names and no RGB meaning beyond a reflectance-like shape.
+    Other,
 }
 
 struct Ctx<'a> {
@@ -461,7 +507,55 @@ impl Ctx<'_> {
             MaterialSpec::Diffuse(d) => {
                 Bsdf::Diffuse(Diffuse::new(self.spectrum(&at("reflectance"), &d.reflectance, Use::Reflectance)?))
             }
+            MaterialSpec::Mirror(m) => {
+                Bsdf::Mirror(Mirror::new(self.spectrum(&at("reflectance"), &m.reflectance, Use::Reflectance)?))
+            }
+            MaterialSpec::Conductor(c) => {
+                let (eta, k) = match (&c.metal, &c.eta, &c.k) {
+                    (Some(name), None, None) => spectrum::metal_eta_k(name).ok_or_else(|| {
+                        self.err(&at("metal"), format!("unknown metal \"{name}\" (known: {})", spectrum::METAL_NAMES.join(", ")))
+                    })?,
+                    (None, Some(eta), Some(k)) => {
+                        (self.spectrum(&at("eta"), eta, Use::Ior)?, self.spectrum(&at("k"), k, Use::Other)?)
+                    }
+                    (None, None, None) => spectrum::metal_eta_k("Cu").expect("Cu is a known metal"),
+                    _ => return Err(self.err(path, "give either \"metal\" or both \"eta\" and \"k\"")),
+                };
+                let (ax, ay) = self.alphas(path, c.roughness, c.alpha, c.alpha_x, c.alpha_y)?;
+                Bsdf::Conductor(Conductor::new(eta, k, ax, ay))
+            }
+            MaterialSpec::Dielectric(d) => {
+                let eta = self.spectrum(&at("ior"), &d.ior, Use::Ior)?;
+                let (ax, ay) = self.alphas(path, d.roughness, d.alpha, d.alpha_x, d.alpha_y)?;
+                Bsdf::Dielectric(Dielectric::new(eta, ax, ay))
+            }
         })
+    }
+
+    /// GGX alphas from exactly one of `roughness` (perceptual, alpha =
+    /// roughness^2), `alpha`, or `alpha_x` with `alpha_y`; smooth if none.
+    fn alphas(
+        &self,
+        path: &[Seg],
+        roughness: Option<f32>,
+        alpha: Option<f32>,
+        alpha_x: Option<f32>,
+        alpha_y: Option<f32>,
+    ) -> Result<(f32, f32), LoadError> {
+        let (field, (ax, ay)) = match (roughness, alpha, alpha_x, alpha_y) {
+            (None, None, None, None) => return Ok((0.0, 0.0)),
+            (Some(r), None, None, None) => ("roughness", (roughness_to_alpha(r), roughness_to_alpha(r))),
+            (None, Some(a), None, None) => ("alpha", (a, a)),
+            (None, None, Some(x), Some(y)) => ("alpha_x", (x, y)),
+            _ => return Err(self.err(path, "give one of \"roughness\", \"alpha\", or both \"alpha_x\" and \"alpha_y\"")),
+        };
+        let at = with(path, field);
+        for v in [roughness, alpha, alpha_x, alpha_y].into_iter().flatten() {
+            if !(v.is_finite() && (0.0..=1.0).contains(&v)) {
+                return Err(self.err(&at, format!("must lie in [0, 1], got {v}")));
+            }
+        }
+        Ok((ax, ay))
     }
 
     fn shape(&self, path: &[Seg], spec: &ShapeSpec) -> Result<Mesh, LoadError> {
