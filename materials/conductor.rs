@@ -50,7 +50,8 @@ impl Conductor {
     #[inline]
     fn f_microfacet(&self, wo: Vec3A, wi: Vec3A, wm: Vec3A, lambda: &SampledWavelengths) -> SampledSpectrum {
         let d = &self.distrib;
-        let s = d.D(wm) * d.G2(wo, wi) / (4.0 * wo.z.abs() * wi.z.abs());
+        // Divided one cosine at a time: their product can underflow.
+        let s = d.D(wm) * d.G2(wo, wi) / (4.0 * wo.z.abs()) / wi.z.abs();
         self.fresnel(wo.dot(wm), lambda) * s
     }
 
@@ -79,13 +80,13 @@ impl Conductor {
             let weight = self.fresnel(wo.z, lambda);
             return BsdfSample::specular(wi, weight, 1.0, BsdfFlags::SPECULAR_REFLECTION, 1.0);
         }
-        let wm = self.distrib.sample_wm(wo, u2);
-        let wi = reflect(wo, wm);
-        if !same_hemisphere(wo, wi) {
-            return None;
-        }
+        let wi = reflect(wo, self.distrib.sample_wm(wo, u2));
+        // f and pdf from the half vector of (wo, wi), not the sampled normal:
+        // the same arithmetic as eval() and pdf(), so they agree exactly
+        // (at grazing angles with tiny alpha the two differ by f32 rounding).
+        let wm = self.half_vector(wo, wi)?;
         let pdf = self.distrib.pdf_reflected(wo, wm);
-        if !(pdf > 0.0) {
+        if pdf.is_nan() || pdf <= 0.0 {
             return None;
         }
         let f = self.f_microfacet(wo, wi, wm, lambda);

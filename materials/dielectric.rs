@@ -36,7 +36,7 @@
 
 use super::fresnel::{fr_dielectric, reflect, refract};
 use super::microfacet::{refraction_jacobian, TrowbridgeReitz};
-use super::{same_hemisphere, BsdfFlags, BsdfSample, TransportMode};
+use super::{BsdfFlags, BsdfSample, TransportMode};
 use crate::spectrum::{SampledSpectrum, SampledWavelengths, Spectrum};
 use glam::{Vec2, Vec3A};
 
@@ -165,21 +165,20 @@ impl Dielectric {
         }
         let wm = self.distrib.sample_wm(wo, u2);
         let r = fr_dielectric(wo.dot(wm), eta);
-        let (wi, h, flags) = if uc < r {
-            let wi = reflect(wo, wm);
-            if !same_hemisphere(wo, wi) {
-                return None;
-            }
-            (wi, HalfVector { wm, etap: 1.0, reflect: true }, BsdfFlags::GLOSSY_REFLECTION)
+        let (wi, flags) = if uc < r {
+            (reflect(wo, wm), BsdfFlags::GLOSSY_REFLECTION)
         } else {
-            let (wi, etap) = refract(wo, wm, eta)?;
-            if wi.z == 0.0 || same_hemisphere(wo, wi) {
-                return None;
-            }
-            (wi, HalfVector { wm, etap, reflect: false }, BsdfFlags::GLOSSY_TRANSMISSION)
+            (refract(wo, wm, eta)?.0, BsdfFlags::GLOSSY_TRANSMISSION)
         };
+        // f and pdf from the half vector of (wo, wi), not the sampled normal:
+        // the same arithmetic as eval() and pdf(), so they agree exactly.
+        let h = half_vector(wo, wi, eta)?;
+        if h.reflect != flags.is_reflection() {
+            return None;
+        }
+        let r = fr_dielectric(wo.dot(h.wm), eta);
         let pdf = self.pdf_rough(wo, wi, h, r);
-        if !(pdf > 0.0) {
+        if pdf.is_nan() || pdf <= 0.0 {
             return None;
         }
         let f = self.spectral(self.f_rough(wo, wi, h, r, mode));
@@ -190,7 +189,8 @@ impl Dielectric {
     /// D G2 T |wo.wm| |dwm/dwi| / (|cos_o| |cos_i|)), `r` = R(wo.wm).
     fn f_rough(&self, wo: Vec3A, wi: Vec3A, h: HalfVector, r: f32, mode: TransportMode) -> f32 {
         let d = &self.distrib;
-        let dg = d.D(h.wm) * d.G2(wo, wi) / (wo.z * wi.z).abs();
+        // Divided one cosine at a time: their product can underflow.
+        let dg = d.D(h.wm) * d.G2(wo, wi) / wo.z.abs() / wi.z.abs();
         if h.reflect {
             dg * r / 4.0
         } else {

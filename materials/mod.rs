@@ -119,15 +119,15 @@ impl BsdfSample {
     }
 
     /// A sample of a delta lobe `scale * delta(w - wi) / |cos theta_i|`
-    /// chosen with probability `pdf`; None at grazing wi or for an impossible
-    /// lobe, so no caller ever sees an infinite f or a zero pdf.
+    /// chosen with probability `pdf`; None at (numerically) grazing wi or for
+    /// an impossible lobe, so no caller ever sees an infinite f or a zero pdf.
     #[inline]
     pub(crate) fn specular(wi: Vec3A, scale: SampledSpectrum, pdf: f32, flags: BsdfFlags, eta: f32) -> Option<Self> {
-        let cos = wi.z.abs();
-        if cos == 0.0 || !(pdf > 0.0) {
+        let f = scale / wi.z.abs();
+        if pdf.is_nan() || pdf <= 0.0 || !f.is_finite() {
             return None;
         }
-        Some(Self { wi, f: scale / cos, pdf, flags, eta })
+        Some(Self { wi, f, pdf, flags, eta })
     }
 }
 

@@ -9,6 +9,7 @@ pub mod film;
 pub mod geometry;
 pub mod light;
 pub mod path;
+pub mod reference;
 pub mod render;
 pub mod sampling;
 pub mod scene;

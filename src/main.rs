@@ -23,6 +23,14 @@ enum Command {
     Render(RenderArgs),
     /// List the registered integrators.
     Integrators,
+    /// Render a stored reference: K independent passes, their mean (EXR) and
+    /// per-block means and standard errors (JSON sidecar) for z-tests.
+    Reference(ReferenceArgs),
+    /// Compare an image with a reference: relMSE, MSE, mean absolute error.
+    Compare {
+        image: PathBuf,
+        reference: PathBuf,
+    },
     /// Regenerate the Jakob-Hanika RGB-to-spectrum coefficient table.
     RgbTable {
         /// Table resolution per axis.
@@ -31,6 +39,33 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
+}
+
+#[derive(clap::Args)]
+struct ReferenceArgs {
+    scene: PathBuf,
+    #[arg(long, default_value = "path")]
+    integrator: String,
+    /// Samples per pixel of each pass.
+    #[arg(long)]
+    spp: u32,
+    /// Number of independent passes (seeds seed, seed+1, ...).
+    #[arg(long, default_value_t = 16)]
+    passes: u32,
+    #[arg(long, default_value_t = 1000)]
+    seed: u64,
+    #[arg(long)]
+    width: u32,
+    #[arg(long)]
+    height: u32,
+    /// Block size (pixels) of the stored statistics.
+    #[arg(long, default_value_t = 8)]
+    block: u32,
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// Output EXR; the sidecar goes next to it (.json).
+    #[arg(long)]
+    out: PathBuf,
 }
 
 #[derive(clap::Args)]
@@ -107,6 +142,8 @@ fn main() -> ExitCode {
             Ok(())
         }
         Command::RgbTable { res, out } => rgb_table(res, &out),
+        Command::Reference(args) => reference_command(args),
+        Command::Compare { image, reference } => compare_command(&image, &reference),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -115,6 +152,48 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+fn reference_command(a: ReferenceArgs) -> Result<()> {
+    let command = std::env::args().collect::<Vec<_>>().join(" ");
+    if a.spp == 0 || a.passes < 2 || a.block == 0 || a.width % a.block != 0 || a.height % a.block != 0 {
+        bail!("need --spp >= 1, --passes >= 2, and --width/--height multiples of --block");
+    }
+    let mut builder = load_scene(&a.scene)?;
+    builder.set_resolution(a.width, a.height);
+    let integrator = integrators::create(&a.integrator, &IntegratorOptions::default()).map_err(anyhow::Error::msg)?;
+    check_writable(&a.out)?;
+    let scene = builder.build();
+    let name = a.scene.display().to_string();
+    let (image, meta) = prism::reference::make_reference(
+        &scene,
+        &name,
+        integrator.as_ref(),
+        &a.integrator,
+        a.spp,
+        a.passes,
+        a.seed,
+        a.block,
+        a.threads,
+        command,
+    );
+    prism::reference::write_reference(&a.out, &image, &meta)?;
+    eprintln!("{} passes x {} spp in {:.1} s", a.passes, a.spp, meta.wall_seconds);
+    Ok(())
+}
+
+fn compare_command(image: &Path, reference: &Path) -> Result<()> {
+    let (w, h, a) = film::read_exr(image)?;
+    let (rw, rh, b) = film::read_exr(reference)?;
+    if (w, h) != (rw, rh) {
+        bail!("{} is {w}x{h} but {} is {rw}x{rh}", image.display(), reference.display());
+    }
+    let n = (a.len() * 3) as f64;
+    let diffs = || a.iter().zip(&b).flat_map(|(x, r)| (0..3).map(move |c| (x[c] as f64, r[c] as f64)));
+    let mse = diffs().map(|(x, r)| (x - r).powi(2)).sum::<f64>() / n;
+    let mae = diffs().map(|(x, r)| (x - r).abs()).sum::<f64>() / n;
+    println!("relMSE {:.6e}  MSE {mse:.6e}  MAE {mae:.6e}", prism::stats::rel_mse(&a, &b));
+    Ok(())
 }
 
 fn rgb_table(res: usize, out: &Path) -> Result<()> {

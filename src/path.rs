@@ -52,7 +52,7 @@
 //! wavelengths (TRANSPORT-NOTES §7).
 
 use crate::camera::CameraWiSample;
-use crate::geometry::{Frame, Ray};
+use crate::geometry::{offset_ray_origin, Frame, Ray};
 use crate::integrators::russian_roulette;
 use crate::light::Light;
 use crate::materials::TransportMode;
@@ -346,6 +346,7 @@ pub fn light_subpath(scene: &Scene, sampler: &mut Sampler, lambda: &mut SampledW
     if le.pdf_pos == 0.0 || le.pdf_dir == 0.0 || le.l.is_black() {
         return;
     }
+    let mut ray = le.ray;
     let (origin, beta, pdf_walk) = if light.is_infinite() {
         // The origin is the direction (solid angle, pmf pdf_dir); the point
         // on the disk is the "direction" of the first step (planar pdf_pos).
@@ -355,10 +356,15 @@ pub fn light_subpath(scene: &Scene, sampler: &mut Sampler, lambda: &mut SampledW
         let n = if light.is_delta_position() { Vec3A::ZERO } else { le.n };
         let v = Vertex::light(i, le.ray.o, n, le.l / (pmf * le.pdf_pos), pmf * le.pdf_pos);
         let cos = if n == Vec3A::ZERO { 1.0 } else { n.dot(le.ray.d).abs() };
+        if n != Vec3A::ZERO {
+            // `sample_le` leaves the origin on the emitter: move it off, or
+            // the ray may hit its own triangle at t ~ 0.
+            ray.o = offset_ray_origin(ray.o, n, ray.d);
+        }
         (v, v.beta * (cos / le.pdf_dir), le.pdf_dir)
     };
     path.push(origin);
-    random_walk(scene, le.ray, beta, pdf_walk, sampler, lambda, TransportMode::Importance, max_depth as usize + 1, path);
+    random_walk(scene, ray, beta, pdf_walk, sampler, lambda, TransportMode::Importance, max_depth as usize + 1, path);
 }
 
 /// Extends `path` (holding the subpath's endpoint) by tracing `ray` and

@@ -94,7 +94,7 @@ pub struct Comparison {
     /// (block x, block y, channel) of the worst z.
     pub worst_at: (u32, u32, usize),
     /// |z| above which one comparison fails: the two-sided Student-t quantile
-    /// with K-1 degrees of freedom at alpha = 0.001 / n.
+    /// with K-1 degrees of freedom at alpha = 0.001 / (n x family size).
     pub threshold: f64,
     pub sum_z2: f64,
     /// Upper-tail probability of sum z^2 under chi-square(n).
@@ -125,16 +125,23 @@ pub const ALPHA: f64 = 0.001;
 
 /// Compares block statistics `a` with `b`: z = (m_a - m_b) / sqrt(s_a^2 + s_b^2).
 pub fn compare(a: &BlockStats, b: &BlockStats) -> Comparison {
+    compare_in_family(a, b, 1)
+}
+
+/// `compare`, as one of `family` comparisons made together (a test matrix):
+/// the Bonferroni correction then spans all of them, so the whole family
+/// falsely fails with probability at most ALPHA.
+pub fn compare_in_family(a: &BlockStats, b: &BlockStats, family: usize) -> Comparison {
     assert_eq!(a.mean.len(), b.mean.len(), "block grids differ");
-    compare_with(a, |i| (b.mean[i], b.stderr[i]))
+    compare_with(a, family, |i| (b.mean[i], b.stderr[i]))
 }
 
 /// Compares block statistics with an exact value per channel (s_b = 0).
 pub fn compare_to_value(a: &BlockStats, value: [f64; 3]) -> Comparison {
-    compare_with(a, |_| (value, [0.0; 3]))
+    compare_with(a, 1, |_| (value, [0.0; 3]))
 }
 
-fn compare_with(a: &BlockStats, reference: impl Fn(usize) -> ([f64; 3], [f64; 3])) -> Comparison {
+fn compare_with(a: &BlockStats, family: usize, reference: impl Fn(usize) -> ([f64; 3], [f64; 3])) -> Comparison {
     let mut n = 0;
     let mut worst = (0.0f64, (0, 0, 0));
     let mut sum_z2 = 0.0;
@@ -158,15 +165,16 @@ fn compare_with(a: &BlockStats, reference: impl Fn(usize) -> ([f64; 3], [f64; 3]
             }
         }
     }
-    let alpha = ALPHA / n as f64;
+    let alpha = ALPHA / (n * family) as f64;
     let t = StudentsT::new(0.0, 1.0, (a.k - 1) as f64).expect("Student t");
     let threshold = t.inverse_cdf(1.0 - alpha / 2.0);
+    let chi2_alpha = ALPHA / family as f64;
     let chi2_p = if sum_z2.is_finite() {
         1.0 - ChiSquared::new(n as f64).expect("chi-square").cdf(sum_z2)
     } else {
         0.0
     };
-    let passed = worst.0 <= threshold && chi2_p >= ALPHA;
+    let passed = worst.0 <= threshold && chi2_p >= chi2_alpha;
     Comparison { n, worst_z: worst.0, worst_at: worst.1, threshold, sum_z2, chi2_p, passed }
 }
 

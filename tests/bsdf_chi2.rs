@@ -227,8 +227,10 @@ fn chi2_negative_controls() {
     let lambert = cases_for("lambert", diffuse(0.5), dir(0.7, 0.0), &[]).remove(0);
     // cos^n / normalisation with n = 1.1 instead of 1.
     let n = 1.1f64;
-    let wrong = |wi: Vec3A| if wi.z > 0.0 { (n + 1.0) / (2.0 * std::f64::consts::PI) * (wi.z as f64).powf(n) } else { 0.0 };
+    let wrong =
+        |wi: Vec3A| if wi.z > 0.0 { (n + 1.0) / (2.0 * std::f64::consts::PI) * (wi.z as f64).powf(n) } else { 0.0 };
     rows.push(("NEG diffuse pdf cos^1.1".into(), run_with_pdf(&lambert, &wrong)));
-    let accepted: Vec<&String> = rows.iter().filter(|(name, o)| !report(name, o, 0.0, alpha)).map(|(name, _)| name).collect();
+    let accepted: Vec<&String> =
+        rows.iter().filter(|(name, o)| !report(name, o, 0.0, alpha)).map(|(name, _)| name).collect();
     assert!(accepted.is_empty(), "negative controls NOT rejected: {accepted:?}");
 }

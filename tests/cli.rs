@@ -73,7 +73,7 @@ fn missing_scene_file_names_it() {
 fn bad_scenes_name_file_line_and_field() {
     let cases: &[(&str, &str, &str)] = &[
         // (scene text, expected position, expected words)
-        ("{\n  \"camera\": {\"position\": [0, 0, -3],,}\n}", ":2:", "expected"),
+        ("{\n  \"camera\": {\"position\": [0, 0, -3],,}\n}", ":2:", "camera: key must be a string"),
         (&GOOD.replace("\"fov\": 40", "\"fov\": \"wide\""), ":2:", "camera.fov"),
         (&GOOD.replace("\"material\": \"white\"", "\"material\": \"whte\""), ":4:", "objects[0].material: unknown material \"whte\""),
         (&GOOD.replace("\"reflectance\": 0.5", "\"reflectance\": \"nosuch\""), ":3:", "materials.white.reflectance: unknown spectrum \"nosuch\""),

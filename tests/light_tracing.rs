@@ -122,12 +122,12 @@ fn emitting_sphere() -> Scene {
 fn uniform_radiance_gives_a_uniform_light_traced_image() {
     let s = emitting_sphere();
     let expected = srgb_of(&Spectrum::Constant(1.0));
-    let passes = render_passes(&s, integrator("light").as_ref(), 16, K, 3, 0);
-    let c = compare_to_value(&BlockStats::from_passes(&passes, 32, 32, 4), expected);
+    let passes = render_passes(&s, integrator("light").as_ref(), 64, K, 3, 0);
+    let c = compare_to_value(&BlockStats::from_passes(&passes, 32, 32, 8), expected);
     eprintln!("emitting sphere, light: {c}");
     assert!(c.passed, "{c}");
-    let no_cos = render_passes(&s, &LightWithoutCos, 16, K, 3, 0);
-    let c = compare_to_value(&BlockStats::from_passes(&no_cos, 32, 32, 4), expected);
+    let no_cos = render_passes(&s, &LightWithoutCos, 64, K, 3, 0);
+    let c = compare_to_value(&BlockStats::from_passes(&no_cos, 32, 32, 8), expected);
     eprintln!("negative control (importance without one cos): {c}");
     assert!(!c.passed, "the missing cosine went undetected: {c}");
 }

@@ -432,16 +432,22 @@ impl Ctx<'_> {
                     }
                     return self.spectrum_depth(path, s, usage, depth + 1);
                 }
+                // Built-in names by use: glasses for an IOR, illuminants for
+                // emission; reflectances have none (a name there must be one
+                // of the scene's own spectra).
                 let builtin = match usage {
-                    Use::Ior => spectrum::glass_ior(name).or_else(|| spectrum::illuminant(name)),
-                    _ => spectrum::illuminant(name),
+                    Use::Ior => spectrum::glass_ior(name),
+                    Use::Emission => spectrum::illuminant(name),
+                    Use::Reflectance | Use::Other => None,
                 };
                 builtin.ok_or_else(|| {
                     let mut known: Vec<String> = self.spectra.keys().cloned().collect();
-                    known.extend(spectrum::ILLUMINANT_NAMES.iter().map(|s| s.to_string()));
-                    if usage == Use::Ior {
-                        known.extend(spectrum::GLASS_NAMES.iter().map(|s| s.to_string()));
-                    }
+                    let builtins = match usage {
+                        Use::Ior => spectrum::GLASS_NAMES,
+                        Use::Emission => spectrum::ILLUMINANT_NAMES,
+                        Use::Reflectance | Use::Other => &[],
+                    };
+                    known.extend(builtins.iter().map(|s| s.to_string()));
                     self.err(path, format!("unknown spectrum \"{name}\" (known: {})", known.join(", ")))
                 })?
             }
@@ -687,7 +693,10 @@ pub fn load_scene(path: &Path) -> Result<SceneBuilder, LoadError> {
 pub fn parse_scene(text: &str, file: &str, dir: &Path) -> Result<SceneBuilder, LoadError> {
     let de = &mut serde_json::Deserializer::from_str(text);
     let parsed: SceneFile = serde_path_to_error::deserialize(de).map_err(|e| {
+        // serde_path_to_error writes `?` for a segment it could not name
+        // (e.g. inside a syntax error); keep the part that is known.
         let field = e.path().to_string();
+        let field = field.split(".?").next().unwrap_or_default().trim_end_matches('?').to_string();
         let inner = e.into_inner();
         let message = strip_position(&inner.to_string());
         LoadError {

@@ -96,11 +96,12 @@ impl SphereGrid {
         Self { axis, t1, t2, k, n_t, n_phi }
     }
 
-    /// A grid whose first few rows resolve a lobe of angular radius `width`
-    /// (radians) centred on `axis`: theta' at t = 0.05 equals `width`.
+    /// A grid whose first rows resolve a lobe of angular radius `width`
+    /// (radians) centred on `axis`: the first five rows end at theta' = width.
     pub fn for_lobe(axis: Vec3A, width: f64, n_t: usize, n_phi: usize) -> Self {
         // theta' ~ 2 t^(k/2) near the pole.
-        let k = (2.0 * (width / 2.0).ln() / 0.05f64.ln()).clamp(1.0, 8.0);
+        let t5 = (5.0 / n_t as f64).min(0.5);
+        let k = (2.0 * (width / 2.0).ln() / t5.ln()).clamp(1.0, 10.0);
         Self::around(axis, k, n_t, n_phi)
     }
 
@@ -175,7 +176,14 @@ impl SphereGrid {
 
     /// The integral of `f` over the whole sphere.
     pub fn integrate(&self, f: &dyn Fn(Vec3A) -> f64, acc: Accuracy) -> f64 {
-        self.integrate_cells(f, acc).iter().sum()
+        self.integrate_split(f, acc, 1)
+    }
+
+    /// The integral over the sphere with every cell cut into `split` x `split`
+    /// adaptive squares first (for integrands with features thinner than the
+    /// first cubature nodes).
+    pub fn integrate_split(&self, f: &dyn Fn(Vec3A) -> f64, acc: Accuracy, split: usize) -> f64 {
+        (0..self.cells()).map(|c| self.integrate_cell_split(f, c, acc, split)).sum()
     }
 }
 
@@ -246,7 +254,7 @@ pub struct Chi2Outcome {
 
 impl Chi2Outcome {
     pub fn rejected(&self, alpha: f64) -> bool {
-        self.error.is_some() || !(self.p_value >= alpha)
+        self.error.is_some() || self.p_value.is_nan() || self.p_value < alpha
     }
 }
 
@@ -298,11 +306,7 @@ pub fn chi2_test(
         error.get_or_insert(format!("{stray} samples in cells where the pdf is 0"));
     }
     let (chi2, dof, worst) = pooled_chi2(&obs, &exp, grid);
-    let p_value = if dof == 0 {
-        1.0
-    } else {
-        ChiSquared::new(dof as f64).map(|d| d.sf(chi2)).unwrap_or(f64::NAN)
-    };
+    let p_value = if dof == 0 { 1.0 } else { ChiSquared::new(dof as f64).map(|d| d.sf(chi2)).unwrap_or(f64::NAN) };
     Chi2Outcome { chi2, dof, p_value, sampled, pdf_integral, error, worst }
 }
 

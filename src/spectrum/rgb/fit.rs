@@ -144,7 +144,6 @@ fn xyz_and_jacobian(c: &[f64; 3]) -> ([f64; 3], Mat3) {
 }
 
 /// Linear sRGB of the reflectance with coefficients c under D65 (f64).
-#[cfg(test)]
 pub(super) fn rgb_of(c: &[f64; 3]) -> [f64; 3] {
     mul(&OBSERVER.xyz_to_rgb, &xyz_and_jacobian(c).0)
 }

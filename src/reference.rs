@@ -1,0 +1,103 @@
+//! Stored references (VALIDATION.md §3): K independent passes of a scene
+//! rendered by one integrator, kept as the mean image (EXR) plus a JSON
+//! sidecar with the per-block means and standard errors the z-tests need,
+//! and where the numbers came from (integrator, spp, passes, seed, commit,
+//! wall time). Made by `prism reference`; read by tests/agreement.rs.
+
+use crate::film::{read_exr, write_exr, write_json};
+use crate::integrators::Integrator;
+use crate::scene::Scene;
+use crate::stats::{render_passes, BlockStats};
+use anyhow::{ensure, Context, Result};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+use std::time::Instant;
+
+/// The sidecar of a stored reference.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct ReferenceMeta {
+    pub scene: String,
+    pub integrator: String,
+    pub spp: u32,
+    pub passes: u32,
+    pub seed: u64,
+    pub width: u32,
+    pub height: u32,
+    pub block: u32,
+    pub commit: String,
+    pub wall_seconds: f64,
+    pub command: String,
+    /// Per-block mean and standard error of the mean (row-major blocks).
+    pub block_mean: Vec<[f64; 3]>,
+    pub block_stderr: Vec<[f64; 3]>,
+}
+
+impl ReferenceMeta {
+    pub fn block_stats(&self) -> BlockStats {
+        BlockStats {
+            blocks_x: self.width / self.block,
+            blocks_y: self.height / self.block,
+            block: self.block,
+            k: self.passes,
+            mean: self.block_mean.clone(),
+            stderr: self.block_stderr.clone(),
+        }
+    }
+}
+
+/// Renders `passes` passes (seeds seed, seed+1, ...) and returns the mean
+/// image with its sidecar.
+#[allow(clippy::too_many_arguments)]
+pub fn make_reference(
+    scene: &Scene,
+    scene_name: &str,
+    integrator: &dyn Integrator,
+    integrator_name: &str,
+    spp: u32,
+    passes: u32,
+    seed: u64,
+    block: u32,
+    threads: usize,
+    command: String,
+) -> (Vec<[f32; 3]>, ReferenceMeta) {
+    let (w, h) = (scene.camera.width, scene.camera.height);
+    let start = Instant::now();
+    let images = render_passes(scene, integrator, spp, passes, seed, threads);
+    let wall_seconds = start.elapsed().as_secs_f64();
+    let stats = BlockStats::from_passes(&images, w, h, block);
+    let mean: Vec<[f32; 3]> = (0..(w * h) as usize)
+        .map(|i| [0, 1, 2].map(|c| (images.iter().map(|im| im[i][c] as f64).sum::<f64>() / passes as f64) as f32))
+        .collect();
+    let meta = ReferenceMeta {
+        scene: scene_name.to_string(),
+        integrator: integrator_name.to_string(),
+        spp,
+        passes,
+        seed,
+        width: w,
+        height: h,
+        block,
+        commit: env!("PRISM_COMMIT").to_string(),
+        wall_seconds,
+        command,
+        block_mean: stats.mean,
+        block_stderr: stats.stderr,
+    };
+    (mean, meta)
+}
+
+/// Writes `<out>.exr` and its sidecar `<out>.json`.
+pub fn write_reference(out: &Path, image: &[[f32; 3]], meta: &ReferenceMeta) -> Result<()> {
+    write_exr(out, meta.width, meta.height, image)?;
+    write_json(&out.with_extension("json"), meta)
+}
+
+/// Reads a reference's sidecar (and checks its EXR matches it).
+pub fn read_reference(exr: &Path) -> Result<(Vec<[f32; 3]>, ReferenceMeta)> {
+    let json = exr.with_extension("json");
+    let text = std::fs::read_to_string(&json).with_context(|| format!("cannot read {}", json.display()))?;
+    let meta: ReferenceMeta = serde_json::from_str(&text).with_context(|| format!("{}: not a reference sidecar", json.display()))?;
+    let (w, h, image) = read_exr(exr)?;
+    ensure!((w, h) == (meta.width, meta.height), "{}: size {w}x{h} differs from its sidecar", exr.display());
+    Ok((image, meta))
+}

@@ -1,0 +1,86 @@
+//! The agreement matrix (VALIDATION.md §3): on scenes where every estimator
+//! can sample every light path, every pair of integrators agrees, and each
+//! agrees with a stored high-spp reference (tests/references, made by the
+//! command in its sidecar). Negative controls: a 2% bias and a dropped last
+//! bounce are rejected by the same harness.
+
+#[path = "common/scenes.rs"]
+mod scenes;
+
+use prism::integrators::{self, IntegratorOptions, INTEGRATORS};
+use prism::reference::read_reference;
+use prism::stats::{compare_in_family, render_passes, BlockStats};
+use scenes::scene;
+use std::path::Path;
+
+const K: u32 = 16;
+const RES: u32 = 32;
+const BLOCK: u32 = 8;
+
+/// Samples per pixel per pass for each estimator, sized for ~equal noise.
+fn spp_for(scene: &str, integrator: &str) -> u32 {
+    match (scene, integrator) {
+        (_, "simple_path") => 256,
+        (_, "light") => 32,
+        _ => 32,
+    }
+}
+
+fn stats(scene_file: &str, integrator: &str, max_depth: u32, seed: u64) -> BlockStats {
+    let s = scene(scene_file, RES, RES);
+    let integ = integrators::create(integrator, &IntegratorOptions { max_depth, ..Default::default() }).unwrap();
+    assert!(integ.unsamplable(&s).is_empty(), "{integrator} cannot sample {scene_file}: {:?}", integ.unsamplable(&s));
+    BlockStats::from_passes(&render_passes(&s, integ.as_ref(), spp_for(scene_file, integrator), K, seed, 0), RES, RES, BLOCK)
+}
+
+fn reference(scene_file: &str) -> BlockStats {
+    let exr = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/references").join(scene_file.replace(".json", ".exr"));
+    let (_, meta) = read_reference(&exr).unwrap_or_else(|e| panic!("{e:#}"));
+    assert_eq!((meta.width, meta.height, meta.block), (RES, RES, BLOCK));
+    meta.block_stats()
+}
+
+/// Every integrator against the reference and against every other one.
+fn matrix(scene_file: &str) {
+    let reference = reference(scene_file);
+    let all: Vec<(&str, BlockStats)> = INTEGRATORS.iter().map(|i| (i.name, stats(scene_file, i.name, 1024, 40))).collect();
+    let n = all.len();
+    let family = n + n * (n - 1) / 2;
+    let mut failures = Vec::new();
+    for (i, (name, s)) in all.iter().enumerate() {
+        let c = compare_in_family(s, &reference, family);
+        eprintln!("{scene_file}: {name} vs reference: {c}");
+        if !c.passed {
+            failures.push(format!("{name} vs reference: {c}"));
+        }
+        for (other, t) in &all[i + 1..] {
+            let c = compare_in_family(s, t, family);
+            eprintln!("{scene_file}: {name} vs {other}: {c}");
+            if !c.passed {
+                failures.push(format!("{name} vs {other}: {c}"));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{scene_file}:\n{}", failures.join("\n"));
+}
+
+#[test]
+fn agreement_matrix_cornell_box() {
+    matrix("cornell-box.json");
+}
+
+/// The harness rejects a 2% bias and a last bounce dropped (max depth 3 on
+/// the Cornell box), for every integrator, against the stored reference.
+#[test]
+fn agreement_negative_controls() {
+    let reference = reference("cornell-box.json");
+    for i in INTEGRATORS {
+        let s = stats("cornell-box.json", i.name, 1024, 41);
+        let c = compare_in_family(&s.scaled(1.02), &reference, 1);
+        eprintln!("{} x1.02: {c}", i.name);
+        assert!(!c.passed, "{}: 2% bias passed: {c}", i.name);
+        let c = compare_in_family(&stats("cornell-box.json", i.name, 3, 42), &reference, 1);
+        eprintln!("{} max depth 3: {c}", i.name);
+        assert!(!c.passed, "{}: dropped bounces passed: {c}", i.name);
+    }
+}
