@@ -38,6 +38,11 @@ fn bsdfs() -> Vec<(&'static str, Bsdf)> {
         ("diffuse", Bsdf::Diffuse(Diffuse::new(Spectrum::Constant(0.5)))),
         ("rough_conductor", Bsdf::Conductor(Conductor::new(eta.clone(), k.clone(), 0.2, 0.2))),
         ("smooth_conductor", Bsdf::Conductor(Conductor::new(eta, k, 0.0, 0.0))),
+        // The same with constant eta, k: the difference is the dense-spectrum lookups.
+        (
+            "smooth_conductor_constant",
+            Bsdf::Conductor(Conductor::new(Spectrum::Constant(0.2), Spectrum::Constant(3.9), 0.0, 0.0)),
+        ),
         ("smooth_dielectric", Bsdf::Dielectric(Dielectric::new(Spectrum::Constant(1.5), 0.0, 0.0))),
         ("rough_dielectric", Bsdf::Dielectric(Dielectric::new(Spectrum::Constant(1.5), 0.2, 0.2))),
     ]

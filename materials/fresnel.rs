@@ -57,8 +57,8 @@ pub fn fr_conductor(cos_theta_i: f32, eta: SampledSpectrum, k: SampledSpectrum) 
     let sin2 = 1.0 - cos2;
     let (eta2, k2) = (eta.0 * eta.0, k.0 * k.0);
     let t0 = eta2 - k2 - Vec4::splat(sin2);
-    let a2_plus_b2 = (t0 * t0 + 4.0 * eta2 * k2).max(Vec4::ZERO).powf(0.5);
-    let a = (0.5 * (a2_plus_b2 + t0)).max(Vec4::ZERO).powf(0.5);
+    let a2_plus_b2 = sqrt4(t0 * t0 + 4.0 * eta2 * k2);
+    let a = sqrt4(0.5 * (a2_plus_b2 + t0));
     let t1 = a2_plus_b2 + Vec4::splat(cos2);
     let t2 = 2.0 * cos_i * a;
     let rs = ratio_or_one(t1 - t2, t1 + t2);
@@ -66,6 +66,14 @@ pub fn fr_conductor(cos_theta_i: f32, eta: SampledSpectrum, k: SampledSpectrum) 
     let t4 = t2 * sin2;
     let rp = rs * ratio_or_one(t3 - t4, t3 + t4);
     SampledSpectrum(0.5 * (rs + rp))
+}
+
+/// Lane-wise square root of the non-negative part (glam's `powf(0.5)` calls
+/// `powf` four times; this compiles to one `sqrtps`).
+#[inline]
+fn sqrt4(v: Vec4) -> Vec4 {
+    let v = v.max(Vec4::ZERO);
+    Vec4::new(v.x.sqrt(), v.y.sqrt(), v.z.sqrt(), v.w.sqrt())
 }
 
 /// n / d, or 1 (total reflection) where the denominator vanishes: that happens
