@@ -17,6 +17,15 @@
 //!   apply it where they call the BSDF in importance mode (src/path.rs).
 //! - Random numbers come in as arguments (`uc` picks a lobe, `u2` the
 //!   direction), never an RNG, so tests can drive them.
+//! - For non-delta lobes, `sample` returns exactly what `eval` and `pdf`
+//!   return at its direction (same arithmetic), so MIS and BDPT's
+//!   forward/reverse pdfs agree bit for bit.
+//!
+//! BSDFs (one per file, JSON `"type"` = file name, parameter table in each
+//! file's header): `diffuse`, `conductor`, `dielectric`, `mirror`. Shared
+//! math: `fresnel` (Fresnel equations, reflect, refract) and `microfacet`
+//! (Trowbridge-Reitz D, Lambda, G1, G2, visible-normal sampling).
+//! Tests: tests/bsdf_chi2.rs, tests/bsdf_props.rs; bench: benches/bsdf.rs.
 
 mod conductor;
 mod dielectric;

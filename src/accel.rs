@@ -25,7 +25,7 @@
 
 use crate::geometry::Ray;
 // `UVec2` is named unqualified inside obvhs's `traverse!`.
-use glam::{DVec3, Mat3A, UVec2, Vec3A, Vec4};
+use glam::{DVec3, UVec2, Vec3A, Vec4};
 use obvhs::{
     aabb::Aabb,
     bvh2::reinsertion::ReinsertionOptimizer,
@@ -48,7 +48,7 @@ pub struct Accel {
     bvh: CwBvh,
     /// Triangles in BVH slot order: `tris[s]` is input triangle
     /// `bvh.primitive_indices[s]`.
-    tris: Vec<[Vec3A; 3]>,
+    tris: Vec<SoaTriangle>,
     /// Number of input triangles, degenerate ones included.
     input_len: usize,
 }
@@ -99,7 +99,7 @@ impl Accel {
         let sorted = bvh
             .primitive_indices
             .iter()
-            .map(|&i| tris[i as usize])
+            .map(|&i| SoaTriangle::new(&tris[i as usize]))
             .collect();
         Self {
             bvh,
@@ -214,19 +214,49 @@ pub fn intersect_triangle(ray: &Ray, tri: &[Vec3A; 3], t_max: f32) -> Option<(f3
     if is_degenerate(tri) {
         return None;
     }
-    PreparedRay::new(ray)?.intersect(tri, t_max)
+    PreparedRay::new(ray)?.intersect(&SoaTriangle::new(tri), t_max)
+}
+
+/// A triangle stored by coordinate rather than by vertex: `c[3 k + j]` is
+/// coordinate k (x, y, z) of vertex j. The watertight test permutes the axes
+/// per ray (kx, ky, kz); in this layout that is a choice of row, and each row
+/// holds the same coordinate of all three vertices, so the shear and the three
+/// edge functions run once for all vertices in SIMD lanes. 36 bytes.
+#[derive(Clone, Copy, Debug)]
+struct SoaTriangle {
+    c: [f32; 9],
+}
+
+impl SoaTriangle {
+    fn new(t: &[Vec3A; 3]) -> Self {
+        let mut c = [0.0; 9];
+        for (k, row) in c.chunks_exact_mut(3).enumerate() {
+            for (j, x) in row.iter_mut().enumerate() {
+                *x = t[j][k];
+            }
+        }
+        Self { c }
+    }
+
+    #[inline(always)]
+    fn row(&self, k: usize) -> Vec3A {
+        let r = &self.c[3 * k..3 * k + 3];
+        Vec3A::new(r[0], r[1], r[2])
+    }
 }
 
 /// Per-ray constants of the watertight test (Woop et al. 2013, sec. 3) and of
 /// the node test.
 struct PreparedRay {
     o: Vec3A,
-    /// Rows (as the matrix's rows; glam stores columns) map v - o to the
-    /// sheared, permuted space in which the ray is +z through the origin:
-    /// row 0 = e_kx - Sx e_kz, row 1 = e_ky - Sy e_kz, row 2 = Sz e_kz. Each
-    /// row has one zero entry, so the matrix product rounds exactly like the
-    /// paper's scalar A[kx] - Sx * A[kz] (x + 0 is exact).
-    shear: Mat3A,
+    /// The axis permutation: kz the dominant axis of d, (kx, ky) the others,
+    /// swapped if d[kz] < 0 so the projected winding (sign of det) is kept.
+    k: [usize; 3],
+    /// o permuted: (o[kx], o[ky], o[kz]).
+    o_k: [f32; 3],
+    /// Shear constants Sx = d[kx] / d[kz], Sy = d[ky] / d[kz], Sz = 1 / d[kz]:
+    /// in the sheared space the ray is +z through the origin.
+    s: [f32; 3],
     /// 1/d, with zero components replaced by +-1e-20 so no 0 * inf = NaN can
     /// silently drop a box (a NaN compare is false).
     inv: Vec3A,
@@ -251,53 +281,47 @@ impl PreparedRay {
         };
         let mut kx = (kz + 1) % 3;
         let mut ky = (kx + 1) % 3;
-        // Swapping keeps the winding of the projected triangle, so the sign of
-        // det stays meaningful (paper, sec. 3.1).
         if d[kz] < 0.0 {
             std::mem::swap(&mut kx, &mut ky);
         }
         let sz = 1.0 / d[kz];
-        let sx = d[kx] * sz;
-        let sy = d[ky] * sz;
-        let mut rows = [[0.0f32; 3]; 3];
-        rows[0][kx] = 1.0;
-        rows[0][kz] = -sx;
-        rows[1][ky] = 1.0;
-        rows[1][kz] = -sy;
-        rows[2][kz] = sz;
-        let shear = Mat3A::from_cols_array_2d(&rows).transpose();
         let dc = d.abs().max(Vec3A::splat(1e-20)).copysign(d);
         let inv = Vec3A::ONE / dc;
         Some(Self {
             o: ray.o,
-            shear,
+            k: [kx, ky, kz],
+            o_k: [ray.o[kx], ray.o[ky], ray.o[kz]],
+            s: [d[kx] * sz, d[ky] * sz, sz],
             inv,
             abs_inv: inv.abs(),
             neg: [inv.x < 0.0, inv.y < 0.0, inv.z < 0.0],
         })
     }
 
-    /// Woop, Benthin & Wald 2013, fig. 2/3 (no backface culling). The three
-    /// 2D edge functions of the sheared triangle are computed from the same
-    /// transformed vertices by every triangle sharing an edge, and the
-    /// edge's function in the neighbour is the exact negation of ours
-    /// (a*b - c*d vs c*d - a*b), so a ray on the edge cannot miss both.
+    /// Woop, Benthin & Wald 2013, fig. 2/3 (no backface culling), with the
+    /// three vertices (a, b, c) in the lanes. Every triangle sharing a vertex
+    /// computes the same sheared coordinates for it, and the edge function
+    /// of a shared edge in the neighbour is the exact negation of ours
+    /// (x1 y2 - y1 x2 vs y1 x2 - x1 y2, products commute exactly), so a ray
+    /// on the edge cannot miss both.
     #[inline(always)]
-    fn intersect(&self, tri: &[Vec3A; 3], t_max: f32) -> Option<(f32, f32, f32)> {
-        let a = self.shear * (tri[0] - self.o);
-        let b = self.shear * (tri[1] - self.o);
-        let c = self.shear * (tri[2] - self.o);
-        let mut u = c.x * b.y - c.y * b.x;
-        let mut v = a.x * c.y - a.y * c.x;
-        let mut w = b.x * a.y - b.y * a.x;
+    fn intersect(&self, tri: &SoaTriangle, t_max: f32) -> Option<(f32, f32, f32)> {
+        let [kx, ky, kz] = self.k;
+        let [sx, sy, sz] = self.s;
+        // Lanes (a, b, c): the vertices relative to o, then sheared.
+        let z = tri.row(kz) - Vec3A::splat(self.o_k[2]);
+        let x = (tri.row(kx) - Vec3A::splat(self.o_k[0])) - Vec3A::splat(sx) * z;
+        let y = (tri.row(ky) - Vec3A::splat(self.o_k[1])) - Vec3A::splat(sy) * z;
+        // Lanes (U, V, W) = (cx by - cy bx, ax cy - ay cx, bx ay - by ax).
+        let mut uvw = x.zxy() * y.yzx() - y.zxy() * x.yzx();
         // Exactly zero means the ray is (in f32) on an edge; the f32 products
         // are exact in f64, so recomputing there gets the true sign (sec. 3.3).
-        if u == 0.0 || v == 0.0 || w == 0.0 {
-            let e = |p: Vec3A, q: Vec3A| (p.x as f64 * q.y as f64 - p.y as f64 * q.x as f64) as f32;
-            u = e(c, b);
-            v = e(a, c);
-            w = e(b, a);
+        if uvw.cmpeq(Vec3A::ZERO).any() {
+            let (x1, y1, x2, y2) = (x.zxy(), y.yzx(), y.zxy(), x.yzx());
+            let e = |i: usize| (x1[i] as f64 * y1[i] as f64 - x2[i] as f64 * y2[i] as f64) as f32;
+            uvw = Vec3A::new(e(0), e(1), e(2));
         }
+        let (u, v, w) = (uvw.x, uvw.y, uvw.z);
         if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
             return None;
         }
@@ -305,7 +329,7 @@ impl PreparedRay {
         if det == 0.0 {
             return None;
         }
-        let t_scaled = u * a.z + v * b.z + w * c.z;
+        let t_scaled = uvw.dot(z * sz);
         // Range test on t = t_scaled / det before dividing (sec. 3.4), with
         // the sign of det folded in; written so that NaN fails.
         let (ts, ds) = if det < 0.0 {

@@ -5,6 +5,7 @@
 
 pub mod accel;
 pub mod camera;
+pub mod converge;
 pub mod film;
 pub mod geometry;
 pub mod light;

@@ -31,6 +31,9 @@ enum Command {
         image: PathBuf,
         reference: PathBuf,
     },
+    /// Progressive renders against a reference: relMSE vs time and spp per
+    /// integrator, charts, efficiency table and report (VALIDATION.md §6).
+    Converge(prism::converge::ConvergeArgs),
     /// Regenerate the Jakob-Hanika RGB-to-spectrum coefficient table.
     RgbTable {
         /// Table resolution per axis.
@@ -144,6 +147,7 @@ fn main() -> ExitCode {
         Command::RgbTable { res, out } => rgb_table(res, &out),
         Command::Reference(args) => reference_command(args),
         Command::Compare { image, reference } => compare_command(&image, &reference),
+        Command::Converge(args) => prism::converge::command(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,484 @@
+//! Proofs for `bdpt` (integrators/bdpt.rs): the white furnace and white
+//! rooms (diffuse, and with mirrors), agreement with `path` and `light` on
+//! the Cornell box for every MIS heuristic, MIS weights that sum to one over
+//! the strategies of a path (checked against Veach's formula on random paths
+//! in random scenes, with delta vertices, point lights and the environment),
+//! per-strategy images that add up to the image, and determinism.
+//! Statistics follow VALIDATION.md §1; each test has a negative control.
+
+#[path = "common/scenes.rs"]
+mod scenes;
+
+use glam::{Vec2, Vec3A};
+use prism::camera::Camera;
+use prism::film::Film;
+use prism::integrators::{self, mis_weight, Integrator, IntegratorOptions, MisHeuristic};
+use prism::materials::{Bsdf, Conductor, Dielectric, Diffuse, Mirror, TransportMode};
+use prism::path::{camera_subpath, light_subpath, Vertex, VertexKind};
+use prism::render::{render, render_with_strategies, RenderOptions, StrategyImages};
+use prism::sampling::Sampler;
+use prism::scene::{Scene, SceneBuilder};
+use prism::shapes::Mesh;
+use prism::spectrum::{SampledWavelengths, Spectrum};
+use prism::stats::{compare, compare_to_value, rel_mse, render_passes, BlockStats, Image};
+use scenes::{integrator, scene, scene_variant, srgb_of};
+use std::sync::OnceLock;
+
+const K: u32 = 16;
+
+fn bdpt(mis: MisHeuristic) -> Box<dyn Integrator> {
+    integrators::create("bdpt", &IntegratorOptions { mis, ..Default::default() }).unwrap()
+}
+
+#[test]
+fn furnace_sphere_vanishes_under_bdpt() {
+    let expected = srgb_of(&Spectrum::Constant(1.0));
+    let run = |s: &Scene| BlockStats::from_passes(&render_passes(s, bdpt(MisHeuristic::Power).as_ref(), 32, K, 1, 0), 32, 32, 8);
+    let c = compare_to_value(&run(&scene("furnace.json", 32, 32)), expected);
+    eprintln!("furnace bdpt: {c}");
+    assert!(c.passed, "{c}");
+    let biased = scene_variant("furnace.json", 32, 32, "\"reflectance\": 1.0", "\"reflectance\": 0.98");
+    let c = compare_to_value(&run(&biased), expected);
+    eprintln!("negative control (albedo 0.98): {c}");
+    assert!(!c.passed, "albedo 0.98 went undetected: {c}");
+}
+
+/// A closed box seen from inside, every face emitting `le` (one-sided,
+/// inward) with albedo `rho` everywhere; faces listed in `mirrors` are
+/// mirrors of reflectance `rho`, the others Lambertian. L = Le / (1 - rho)
+/// in every direction (VALIDATION.md §2).
+fn white_room(le: &Spectrum, rho: &Spectrum, mirrors: &[usize]) -> Scene {
+    let camera = Camera::new(Vec3A::new(0.2, -0.1, 0.1), Vec3A::new(1.0, 0.7, 2.0), Vec3A::Y, 60.0, 32, 32);
+    let mut b = SceneBuilder::new(camera);
+    let diffuse = b.material("diffuse", Bsdf::Diffuse(Diffuse::new(rho.clone())));
+    let mirror = b.material("mirror", Bsdf::Mirror(Mirror::new(rho.clone())));
+    let mut room = Mesh::cuboid(Vec3A::new(-1.0, -1.0, -1.5), Vec3A::new(1.5, 1.0, 1.0));
+    room.flip();
+    // Mesh::cuboid lists its faces two triangles at a time.
+    for face in 0..6 {
+        let mesh = Mesh { positions: room.positions.clone(), normals: Vec::new(), indices: room.indices[2 * face..2 * face + 2].to_vec() };
+        let m = if mirrors.contains(&face) { mirror } else { diffuse };
+        b.mesh(&format!("face {face}"), mesh, m, Some((le.clone(), false)));
+    }
+    b.build()
+}
+
+#[test]
+fn white_rooms_read_le_over_one_minus_rho() {
+    let le = Spectrum::piecewise_linear(&[(400.0, 0.2), (550.0, 0.6), (700.0, 0.4)]);
+    let rho = Spectrum::piecewise_linear(&[(400.0, 0.7), (550.0, 0.5), (700.0, 0.3)]);
+    let expected_spectrum = Spectrum::from_fn(|l| le.eval(l) / (1.0 - rho.eval(l)));
+    let expected = srgb_of(&expected_spectrum);
+    let bd = bdpt(MisHeuristic::Power);
+    for mirrors in [&[][..], &[1, 3, 4]] {
+        let run = |rho: &Spectrum| BlockStats::from_passes(&render_passes(&white_room(&le, rho, mirrors), bd.as_ref(), 16, K, 5, 0), 32, 32, 8);
+        let c = compare_to_value(&run(&rho), expected);
+        eprintln!("white room (mirror faces {mirrors:?}), expected {expected:?}: {c}");
+        assert!(c.passed, "{c}");
+        let c = compare_to_value(&run(&rho.scale(0.98)), expected);
+        eprintln!("negative control (rho x 0.98): {c}");
+        assert!(!c.passed, "rho x 0.98 went undetected: {c}");
+    }
+}
+
+/// The Cornell box passes of `path` (32 x 32, 128 spp), shared by the
+/// agreement tests.
+fn cornell_path() -> &'static [Image] {
+    static PATH: OnceLock<Vec<Image>> = OnceLock::new();
+    PATH.get_or_init(|| render_passes(&scene("cornell-box.json", 32, 32), integrator("path").as_ref(), 128, K, 10, 0))
+}
+
+#[test]
+fn bdpt_agrees_with_path_and_light_on_the_cornell_box() {
+    let s = scene("cornell-box.json", 32, 32);
+    let path = &BlockStats::from_passes(cornell_path(), 32, 32, 8);
+    let bd = BlockStats::from_passes(&render_passes(&s, bdpt(MisHeuristic::Power).as_ref(), 32, K, 100, 0), 32, 32, 8);
+    let c = compare(&bd, path);
+    eprintln!("cornell bdpt vs path: {c}");
+    assert!(c.passed, "{c}");
+    let light = BlockStats::from_passes(&render_passes(&s, integrator("light").as_ref(), 128, K, 200, 0), 32, 32, 8);
+    let c = compare(&bd, &light);
+    eprintln!("cornell bdpt vs light: {c}");
+    assert!(c.passed, "{c}");
+    for biased in [bd.scaled(1.02), bd.scaled(0.98)] {
+        for (name, other) in [("path", path), ("light", &light)] {
+            let c = compare(&biased, other);
+            eprintln!("negative control (bdpt x1.02 / x0.98 vs {name}): {c}");
+            assert!(!c.passed, "a 2% bias went undetected against {name}: {c}");
+        }
+    }
+}
+
+/// The uniform and balance heuristics are unbiased too (16 x 16 blocks: the
+/// uniform weights are noisy); the relMSE of one pass against the mean of
+/// `path`'s passes shows what the heuristic buys (printed, not asserted).
+#[test]
+fn uniform_and_balance_mis_are_unbiased() {
+    let s = scene("cornell-box.json", 32, 32);
+    let path_passes = cornell_path();
+    let path = &BlockStats::from_passes(path_passes, 32, 32, 16);
+    let reference: Image = (0..path_passes[0].len())
+        .map(|i| [0, 1, 2].map(|c| path_passes.iter().map(|p| p[i][c]).sum::<f32>() / path_passes.len() as f32))
+        .collect();
+    let mut mse = Vec::new();
+    for mis in [MisHeuristic::Uniform, MisHeuristic::Balance, MisHeuristic::Power] {
+        let passes = render_passes(&s, bdpt(mis).as_ref(), 32, K, 300, 0);
+        let stats = BlockStats::from_passes(&passes, 32, 32, 16);
+        let m = passes.iter().map(|p| rel_mse(p, &reference)).sum::<f64>() / passes.len() as f64;
+        mse.push((mis, m));
+        if mis == MisHeuristic::Power {
+            continue;
+        }
+        let c = compare(&stats, path);
+        eprintln!("cornell bdpt --mis {mis:?} vs path: {c}");
+        assert!(c.passed, "{mis:?}: {c}");
+        let c = compare(&stats.scaled(1.02), path);
+        eprintln!("negative control ({mis:?} x1.02): {c}");
+        assert!(!c.passed, "{mis:?}: a 2% bias went undetected: {c}");
+    }
+    for (mis, m) in mse {
+        eprintln!("relMSE of one 32 spp pass vs the path reference, --mis {mis:?}: {m:.4e}");
+    }
+}
+
+// ---------------------------------------------------------------------------
+// MIS weights sum to one.
+
+/// A scene with every kind of vertex: a room open at the front (so the
+/// environment is reachable), walls and objects of random materials
+/// (Lambertian, mirror, glass, rough metal, rough glass) and a random
+/// non-empty set of lights (area, point, environment).
+fn random_scene(seed: u64) -> Scene {
+    let mut rng = Sampler::new(seed, 99, 0);
+    let camera = Camera::new(Vec3A::new(0.0, 1.0, -2.5), Vec3A::new(0.0, 1.0, 0.0), Vec3A::Y, 60.0, 32, 32);
+    let mut b = SceneBuilder::new(camera);
+    let mats = [
+        b.material("diffuse", Bsdf::Diffuse(Diffuse::new(Spectrum::Constant(0.7)))),
+        b.material("mirror", Bsdf::Mirror(Mirror::new(Spectrum::Constant(0.8)))),
+        b.material("glass", Bsdf::Dielectric(Dielectric::new(Spectrum::Constant(1.5), 0.0, 0.0))),
+        b.material("rough metal", Bsdf::Conductor(Conductor::new(Spectrum::Constant(0.2), Spectrum::Constant(3.0), 0.3, 0.3))),
+        b.material("rough glass", Bsdf::Dielectric(Dielectric::new(Spectrum::Constant(1.3), 0.25, 0.25))),
+    ];
+    let pick = |rng: &mut Sampler| mats[((rng.get1d() * mats.len() as f32) as usize).min(mats.len() - 1)];
+    let v = |x: f32, y: f32, z: f32| Vec3A::new(x, y, z);
+    let walls = [
+        [v(-2.0, 0.0, -3.0), v(-2.0, 0.0, 3.0), v(2.0, 0.0, 3.0), v(2.0, 0.0, -3.0)],
+        [v(-2.0, 3.0, -3.0), v(2.0, 3.0, -3.0), v(2.0, 3.0, 3.0), v(-2.0, 3.0, 3.0)],
+        [v(-2.0, 0.0, 3.0), v(-2.0, 3.0, 3.0), v(2.0, 3.0, 3.0), v(2.0, 0.0, 3.0)],
+        [v(-2.0, 0.0, -3.0), v(-2.0, 3.0, -3.0), v(-2.0, 3.0, 3.0), v(-2.0, 0.0, 3.0)],
+    ];
+    for (i, w) in walls.into_iter().enumerate() {
+        let m = if i == 0 { mats[0] } else { pick(&mut rng) };
+        b.mesh(&format!("wall {i}"), Mesh::quad(w), m, None);
+    }
+    let m = pick(&mut rng);
+    b.mesh("ball", Mesh::sphere(v(-0.6, 0.7, 0.5), 0.6, 2, false), m, None);
+    let m = pick(&mut rng);
+    b.mesh("box", Mesh::cuboid(v(0.3, 0.0, 0.2), v(1.2, 1.1, 1.4)), m, None);
+    let lights = 1 + ((rng.get1d() * 7.0) as u32).min(6);
+    if lights & 1 != 0 {
+        let q = [v(-0.5, 2.95, 0.0), v(0.5, 2.95, 0.0), v(0.5, 2.95, 1.0), v(-0.5, 2.95, 1.0)];
+        b.mesh("panel", Mesh::quad(q), mats[0], Some((Spectrum::Constant(5.0), rng.get1d() < 0.5)));
+    }
+    if lights & 2 != 0 {
+        b.point_light("bulb", v(1.0, 2.0, -1.0), Spectrum::Constant(10.0));
+    }
+    if lights & 4 != 0 {
+        b.environment("sky", Spectrum::Constant(0.5));
+    }
+    b.build()
+}
+
+/// Which strategies (s, t), t = 1 ..= k + 1, can make the path x_0 .. x_k:
+/// the connection edge (x_{t-1}, x_t) must join two non-delta vertices, a
+/// point light cannot be hit (t = k + 1), the pinhole cannot see the
+/// environment by a connection.
+fn allowed(scene: &Scene, x: &[Vertex], t: usize) -> bool {
+    let k = x.len() - 1;
+    if t == k + 1 {
+        return !x[k].is_delta_light(scene);
+    }
+    if t == 1 && x[1].is_infinite() {
+        return false;
+    }
+    (t == 1 || !x[t - 1].delta) && (t == k || !x[t].delta)
+}
+
+/// Densities of every vertex of the full path x_0 (pinhole) .. x_k
+/// (emitter), in area measure (solid angle at infinity): pc from the camera
+/// side, pl from the light side.
+fn densities(scene: &Scene, x: &[Vertex], lambda: &SampledWavelengths) -> (Vec<f32>, Vec<f32>) {
+    let k = x.len() - 1;
+    let mut pc = vec![0.0; k + 1];
+    let mut pl = vec![0.0; k + 1];
+    pc[1] = x[0].pdf(scene, None, &x[1], lambda, TransportMode::Radiance);
+    for i in 2..=k {
+        pc[i] = x[i - 1].pdf(scene, Some(&x[i - 2]), &x[i], lambda, TransportMode::Radiance);
+    }
+    pl[k] = x[k].pdf_light_origin(scene, &x[k - 1]);
+    pl[k - 1] = x[k].pdf_light(scene, &x[k - 1]);
+    for i in 1..k.saturating_sub(1) {
+        pl[i] = x[i + 1].pdf(scene, Some(&x[i + 2]), &x[i], lambda, TransportMode::Importance);
+    }
+    (pc, pl)
+}
+
+fn remap0(x: f32) -> f64 {
+    if x == 0.0 {
+        1.0
+    } else {
+        x as f64
+    }
+}
+
+/// The subpaths with which strategy (s, t) makes the full path, with the
+/// densities a walk would have stored, and the endpoint it samples.
+fn split(x: &[Vertex], pc: &[f32], pl: &[f32], t: usize) -> (Vec<Vertex>, Vec<Vertex>, Option<Vertex>) {
+    let k = x.len() - 1;
+    let s = k + 1 - t;
+    let camera: Vec<Vertex> = (0..t)
+        .map(|i| Vertex { pdf_fwd: pc[i], pdf_rev: pl[i], ..x[i] })
+        .collect();
+    let light: Vec<Vertex> = (0..s)
+        .map(|j| {
+            let mut v = Vertex { pdf_fwd: pl[k - j], pdf_rev: pc[k - j], ..x[k - j] };
+            if j == 0 {
+                v.delta = false;
+                if v.kind == VertexKind::Surface {
+                    v.kind = VertexKind::Light;
+                }
+            }
+            v
+        })
+        .collect();
+    let sampled = if t == 1 {
+        Some(camera[0])
+    } else if s == 1 {
+        Some(light[0])
+    } else {
+        None
+    };
+    (light, camera, sampled)
+}
+
+struct MisCheck {
+    paths: usize,
+    with_delta: usize,
+    point_light: usize,
+    environment: usize,
+    /// Largest |sum of weights - 1| over paths and heuristics.
+    worst_sum: f64,
+    /// Largest relative difference from Veach's formula.
+    worst_formula: f64,
+    /// Densities stored by the walks compared with those recomputed from the
+    /// full path: how many, and how many differ by more than 1e-3 relative.
+    /// The walk stores the pdf of the sampled direction, the recomputation
+    /// uses the direction between the vertices, which the ray-origin offset
+    /// changes by ~1e-4: peaked lobes (rough glass near grazing) amplify
+    /// that, so a few are expected to differ.
+    densities_checked: usize,
+    densities_off: usize,
+    densities_far_off: usize,
+    swapped_checked: usize,
+    swapped_off: usize,
+    /// The negative control: |sum - 1| when s = 1 keeps the NEE density.
+    worst_sum_without_substitution: f64,
+}
+
+fn check_path(scene: &Scene, x: &[Vertex], lambda: &SampledWavelengths, out: &mut MisCheck) {
+    let k = x.len() - 1;
+    let (pc, pl) = densities(scene, x, lambda);
+    let ts: Vec<usize> = (1..=k + 1).filter(|&t| allowed(scene, x, t)).collect();
+    if ts.is_empty() || pc[1] == 0.0 {
+        return;
+    }
+    out.paths += 1;
+    out.with_delta += x[1..k].iter().any(|v| v.delta) as usize;
+    out.point_light += x[k].is_delta_light(scene) as usize;
+    out.environment += x[k].is_infinite() as usize;
+    // Veach's formula: p_{s,t} = prod_{i<t} pc_i prod_{i>=t} pl_i.
+    let p: Vec<f64> = ts
+        .iter()
+        .map(|&t| (1..t).map(|i| remap0(pc[i])).product::<f64>() * (t..=k).map(|i| remap0(pl[i])).product::<f64>())
+        .collect();
+    for mis in [MisHeuristic::Power, MisHeuristic::Balance, MisHeuristic::Uniform] {
+        let h = |p: f64| match mis {
+            MisHeuristic::Power => p * p,
+            MisHeuristic::Balance => p,
+            MisHeuristic::Uniform => 1.0,
+        };
+        let total: f64 = p.iter().map(|&p| h(p)).sum();
+        let mut sum = 0.0;
+        for (&t, &pt) in ts.iter().zip(&p) {
+            let (light, camera, sampled) = split(x, &pc, &pl, t);
+            let w = mis_weight(scene, &light, &camera, sampled.as_ref(), k + 1 - t, t, mis, lambda) as f64;
+            sum += w;
+            let direct = h(pt) / total;
+            out.worst_formula = out.worst_formula.max((w - direct).abs() / direct.max(1e-3));
+            // Negative control: s = 1 with the density of the NEE sample
+            // (solid angle, sample_li) instead of the light-origin density.
+            if mis == MisHeuristic::Balance && k + 1 - t == 1 && t > 1 && x[k].kind != VertexKind::Environment && !x[k].is_delta_light(scene) {
+                let (i, l) = x[k].emitter(scene).unwrap();
+                let mut q = sampled.unwrap();
+                q.pdf_fwd = scene.light_pmf(i) * l.pdf_li(x[k - 1].p(), x[k].p(), x[k].si.ng);
+                let w_bad = mis_weight(scene, &light, &camera, Some(&q), 1, t, mis, lambda) as f64;
+                let others: f64 = ts.iter().zip(&p).filter(|(&u, _)| u != t).map(|(_, &p)| h(p) / total).sum();
+                out.worst_sum_without_substitution = out.worst_sum_without_substitution.max((others + w_bad - 1.0).abs());
+            }
+        }
+        out.worst_sum = out.worst_sum.max((sum - 1.0).abs());
+    }
+}
+
+fn rel(a: f32, b: f32) -> f64 {
+    ((a - b).abs() / a.abs().max(b.abs()).max(1e-30)) as f64
+}
+
+fn bookkeeping(out: &mut MisCheck, rel: f64) {
+    out.densities_checked += 1;
+    out.densities_off += (rel > 1e-3) as usize;
+    out.densities_far_off += (rel > 1e-2) as usize;
+}
+
+#[test]
+fn mis_weights_of_all_strategies_sum_to_one() {
+    let mut out = MisCheck {
+        paths: 0,
+        with_delta: 0,
+        point_light: 0,
+        environment: 0,
+        worst_sum: 0.0,
+        worst_formula: 0.0,
+        densities_checked: 0,
+        densities_off: 0,
+        densities_far_off: 0,
+        swapped_checked: 0,
+        swapped_off: 0,
+        worst_sum_without_substitution: 0.0,
+    };
+    let (mut cam, mut lig) = (Vec::new(), Vec::new());
+    for seed in 0..24 {
+        let scene = random_scene(seed);
+        for n in 0..200 {
+            let mut sampler = Sampler::new(seed, n, 1);
+            let mut lambda = SampledWavelengths::sample_visible(sampler.get1d());
+            let raster = sampler.get2d() * Vec2::new(32.0, 32.0);
+            camera_subpath(&scene, raster, &mut sampler, &mut lambda, 8, &mut cam);
+            light_subpath(&scene, &mut sampler, &mut lambda, 8, &mut lig);
+            // Full paths that end where the camera walk found emission.
+            for k in 1..cam.len() {
+                let x = &cam[..=k];
+                if x[k].le(&scene, &x[k - 1], &lambda).is_black() {
+                    continue;
+                }
+                let (pc, pl) = densities(&scene, x, &lambda);
+                for i in 1..=k {
+                    bookkeeping(&mut out, rel(x[i].pdf_fwd, pc[i]));
+                    // Negative control: the other side's densities.
+                    out.swapped_checked += 1;
+                    out.swapped_off += (rel(x[i].pdf_fwd, pl[i]) > 1e-3) as usize;
+                }
+                for i in 1..k.saturating_sub(1) {
+                    bookkeeping(&mut out, rel(x[i].pdf_rev, pl[i]));
+                }
+                check_path(&scene, x, &lambda, &mut out);
+            }
+            // Full paths that end where the light walk is seen by the pinhole.
+            for m in 2..=lig.len() {
+                let mut x = vec![Vertex::camera(&scene, prism::spectrum::SampledSpectrum::ONE)];
+                x.extend(lig[..m].iter().rev().copied());
+                let k = x.len() - 1;
+                let (pc, pl) = densities(&scene, &x, &lambda);
+                // The light walk stored each vertex's light-side density, and
+                // its camera-side one where the camera side does not depend
+                // on the pinhole's direction (x_3 onwards).
+                for i in 1..=k {
+                    bookkeeping(&mut out, rel(x[i].pdf_fwd, pl[i]));
+                }
+                for i in 3..=k {
+                    bookkeeping(&mut out, rel(x[i].pdf_rev, pc[i]));
+                }
+                check_path(&scene, &x, &lambda, &mut out);
+            }
+        }
+    }
+    eprintln!(
+        "{} paths ({} with a specular vertex, {} from point lights, {} from the environment): worst |sum - 1| = {:.2e}, worst deviation from Veach's formula = {:.2e}; walk densities off by > 1e-3: {} (> 1e-2: {}) of {} (negative control, the other side's: {} of {}); without the s = 1 density substitution: worst |sum - 1| = {:.3}",
+        out.paths, out.with_delta, out.point_light, out.environment, out.worst_sum, out.worst_formula, out.densities_off, out.densities_far_off, out.densities_checked, out.swapped_off, out.swapped_checked, out.worst_sum_without_substitution
+    );
+    assert!(out.paths > 1000 && out.with_delta > 100 && out.point_light > 50 && out.environment > 50, "too few paths of some kind");
+    assert!(out.swapped_off * 2 > out.swapped_checked, "the negative control did not fail");
+    assert!(out.densities_off * 100 < out.densities_checked, "walk densities differ from the full path's: {} of {}", out.densities_off, out.densities_checked);
+    assert!(out.worst_sum < 1e-3, "weights do not sum to one: {}", out.worst_sum);
+    assert!(out.worst_formula < 1e-3, "weights differ from Veach's formula: {}", out.worst_formula);
+    assert!(out.worst_sum_without_substitution > 1e-2, "the negative control did not fail: {}", out.worst_sum_without_substitution);
+}
+
+// ---------------------------------------------------------------------------
+// Per-strategy images and determinism.
+
+#[test]
+fn strategy_images_sum_to_the_image() {
+    let s = scene("cornell-box.json", 24, 20);
+    let bd = bdpt(MisHeuristic::Power);
+    let mut film = Film::new(24, 20);
+    let mut strategies = StrategyImages::new(24, 20);
+    let opts = RenderOptions { seed: 3, threads: 0, progress: false };
+    render_with_strategies(&s, bd.as_ref(), &opts, &mut film, 0..8, &mut strategies);
+    let image = film.image();
+    let keys: Vec<(u32, u32)> = strategies.sums.keys().copied().collect();
+    assert!(keys.contains(&(0, 2)) && keys.contains(&(1, 1)) && keys.contains(&(1, 2)) && keys.contains(&(2, 1)) && keys.contains(&(2, 2)), "{keys:?}");
+    let total = |skip: Option<(u32, u32)>| -> Image {
+        let mut sum = vec![[0f32; 3]; image.len()];
+        for &(st, tt) in keys.iter().filter(|&&k| Some(k) != skip) {
+            for (acc, p) in sum.iter_mut().zip(strategies.image(st, tt, true).unwrap()) {
+                for c in 0..3 {
+                    acc[c] += p[c];
+                }
+            }
+        }
+        sum
+    };
+    let worst = |a: &Image| a.iter().zip(&image).flat_map(|(x, y)| (0..3).map(move |c| (x[c] - y[c]).abs() / (y[c].abs() + 1e-3))).fold(0f32, f32::max);
+    let w = worst(&total(None));
+    eprintln!("{} strategies; worst relative difference of their sum from the image: {w:.2e}", keys.len());
+    assert!(w < 1e-5, "per-strategy images do not add up: {w}");
+    // Negative control: leaving out one of the main strategies is detected
+    // ((0, 2) is small: the (1, 1) strategy takes most of the directly seen
+    // light).
+    for k in [(0, 2), (1, 1), (1, 2), (2, 1), (2, 2)] {
+        let w = worst(&total(Some(k)));
+        eprintln!("without {k:?}: worst relative difference {w:.2e}");
+        assert!(w > 1e-5, "dropping {k:?} went unnoticed ({w})");
+    }
+    // Unweighted images: each strategy's own estimate; the strategies that
+    // can make every path of the Cornell box (s >= 1, t >= 2 reaches all
+    // surfaces) are of the same order as the image.
+    assert!(strategies.image(1, 2, false).unwrap().iter().any(|p| p[1] > 0.0));
+}
+
+#[test]
+fn bdpt_and_light_are_bit_identical_across_thread_counts() {
+    let s = scene("cornell-box.json", 40, 24);
+    for name in ["bdpt", "light"] {
+        let it = integrator(name);
+        let images: Vec<(Image, Vec<Image>)> = [1, 2]
+            .iter()
+            .map(|&threads| {
+                let mut film = Film::new(40, 24);
+                let mut st = StrategyImages::new(40, 24);
+                let opts = RenderOptions { seed: 7, threads, progress: false };
+                if name == "bdpt" {
+                    render_with_strategies(&s, it.as_ref(), &opts, &mut film, 0..3, &mut st);
+                } else {
+                    render(&s, it.as_ref(), &opts, &mut film, 0..3);
+                }
+                let per: Vec<Image> = st.sums.keys().flat_map(|&(a, b)| [st.image(a, b, true).unwrap(), st.image(a, b, false).unwrap()]).collect();
+                (film.image(), per)
+            })
+            .collect();
+        let same = |a: &Image, b: &Image| a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.map(f32::to_bits) == y.map(f32::to_bits));
+        assert!(same(&images[0].0, &images[1].0), "{name}: images differ between 1 and 2 threads");
+        assert!(images[0].1.len() == images[1].1.len() && images[0].1.iter().zip(&images[1].1).all(|(a, b)| same(a, b)), "{name}: strategy images differ");
+    }
+}
