@@ -32,11 +32,9 @@ static CMF: LazyLock<Vec<[f32; 3]>> = LazyLock::new(|| {
 
 #[inline]
 fn cmf_at(lambda: f32) -> Vec3 {
-    let i = (lambda - LAMBDA_MIN).round();
-    if (0.0..N_DENSE as f32).contains(&i) {
-        Vec3::from_array(CMF[i as usize])
-    } else {
-        Vec3::ZERO
+    match super::dense_index(lambda) {
+        Some(i) => Vec3::from_array(CMF[i]),
+        None => Vec3::ZERO,
     }
 }
 

@@ -73,14 +73,10 @@ impl Spectrum {
     pub fn eval(&self, lambda: f32) -> f32 {
         match self {
             Spectrum::Constant(c) => *c,
-            Spectrum::Dense(t) => {
-                let i = (lambda - LAMBDA_MIN).round();
-                if (0.0..N_DENSE as f32).contains(&i) {
-                    t[i as usize]
-                } else {
-                    0.0
-                }
-            }
+            Spectrum::Dense(t) => match dense_index(lambda) {
+                Some(i) => t[i],
+                None => 0.0,
+            },
         }
     }
 
@@ -134,6 +130,14 @@ impl Spectrum {
             Spectrum::Dense(_) => Spectrum::from_fn(|l| self.eval(l) * s),
         }
     }
+}
+
+/// Index of the nearest integer wavelength in the dense tables, if in range.
+/// floor(x + 0.5) equals round(x) for x >= 0 and avoids a libm call.
+#[inline]
+pub(crate) fn dense_index(lambda: f32) -> Option<usize> {
+    let x = lambda - LAMBDA_MIN + 0.5;
+    (x >= 0.0 && x < N_DENSE as f32).then_some(x as usize)
 }
 
 fn piecewise_linear_at(points: &[(f32, f32)], lambda: f32) -> f32 {

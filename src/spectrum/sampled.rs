@@ -44,7 +44,7 @@ impl SampledSpectrum {
     }
     #[inline]
     pub fn sqrt(self) -> Self {
-        Self(self.0.max(Vec4::ZERO).powf(0.5))
+        Self(Vec4::from_array(self.0.max(Vec4::ZERO).to_array().map(f32::sqrt)))
     }
     /// Component-wise division that yields 0 where the divisor is 0.
     #[inline]
