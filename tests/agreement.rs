@@ -69,6 +69,20 @@ fn agreement_matrix_cornell_box() {
     matrix("cornell-box.json");
 }
 
+/// Rough gold and rough glass: glossy reflection, rough refraction seen by
+/// the camera, caustics through rough glass.
+#[test]
+fn agreement_matrix_cornell_glossy() {
+    matrix("cornell-glossy.json");
+}
+
+/// A dispersive (SF11) sphere seen only through diffuse bounces: paths through
+/// it keep only their hero wavelength, in every estimator.
+#[test]
+fn agreement_matrix_cornell_dispersion() {
+    matrix("cornell-dispersion.json");
+}
+
 /// The harness rejects a 2% bias and a last bounce dropped (max depth 3 on
 /// the Cornell box), for every integrator, against the stored reference.
 #[test]
