@@ -50,71 +50,39 @@ fn cornell_box() -> Vec<[Vec3A; 3]> {
         Mesh::quad([v(0., 0., 0.), v(0., 1., 0.), v(1., 1., 0.), v(1., 0., 0.)]), // front
         Mesh::quad([v(0., 0., 0.), v(0., 0., 1.), v(0., 1., 1.), v(0., 1., 0.)]), // left
         Mesh::quad([v(1., 0., 0.), v(1., 1., 0.), v(1., 1., 1.), v(1., 0., 1.)]), // right
-        Mesh::quad([
-            v(0.4, 0.999, 0.4),
-            v(0.4, 0.999, 0.6),
-            v(0.6, 0.999, 0.6),
-            v(0.6, 0.999, 0.4),
-        ]),
+        Mesh::quad([v(0.4, 0.999, 0.4), v(0.4, 0.999, 0.6), v(0.6, 0.999, 0.6), v(0.6, 0.999, 0.4)]),
     ];
     let mut tall = Mesh::cuboid(v(-0.15, 0.0, -0.15), v(0.15, 0.6, 0.15));
-    tall.transform(
-        Affine3A::from_translation(glam::Vec3::new(0.33, 0.0, 0.65))
-            * Affine3A::from_rotation_y(0.3),
-    );
+    tall.transform(Affine3A::from_translation(glam::Vec3::new(0.33, 0.0, 0.65)) * Affine3A::from_rotation_y(0.3));
     let mut short = Mesh::cuboid(v(-0.15, 0.0, -0.15), v(0.15, 0.3, 0.15));
-    short.transform(
-        Affine3A::from_translation(glam::Vec3::new(0.67, 0.0, 0.35))
-            * Affine3A::from_rotation_y(-0.3),
-    );
+    short.transform(Affine3A::from_translation(glam::Vec3::new(0.67, 0.0, 0.35)) * Affine3A::from_rotation_y(-0.3));
     m.push(tall);
     m.push(short);
     m.iter().flat_map(|m| m.triangles()).collect()
 }
 
 fn build(c: &mut Criterion) {
-    let tris: Vec<_> = Mesh::sphere(Vec3A::ZERO, 1.0, BIG_SUBDIVISIONS, false)
-        .triangles()
-        .collect();
+    let tris: Vec<_> = Mesh::sphere(Vec3A::ZERO, 1.0, BIG_SUBDIVISIONS, false).triangles().collect();
     let mut g = c.benchmark_group("bvh_build");
-    g.sample_size(10)
-        .warm_up_time(Duration::from_secs(1))
-        .measurement_time(Duration::from_secs(8));
+    g.sample_size(10).warm_up_time(Duration::from_secs(1)).measurement_time(Duration::from_secs(8));
     g.throughput(Throughput::Elements(tris.len() as u64));
-    g.bench_function(BenchmarkId::new("icosphere", tris.len()), |b| {
-        b.iter(|| Accel::build(black_box(&tris)))
-    });
+    g.bench_function(BenchmarkId::new("icosphere", tris.len()), |b| b.iter(|| Accel::build(black_box(&tris))));
     g.finish();
 }
 
 fn traverse(c: &mut Criterion) {
-    let big: Vec<_> = Mesh::sphere(Vec3A::ZERO, 1.0, BIG_SUBDIVISIONS, false)
-        .triangles()
-        .collect();
+    let big: Vec<_> = Mesh::sphere(Vec3A::ZERO, 1.0, BIG_SUBDIVISIONS, false).triangles().collect();
     let scenes = [
-        (
-            "cornell",
-            Accel::build(&cornell_box()),
-            incoherent_rays(Vec3A::splat(0.01), Vec3A::splat(0.99), 1),
-        ),
-        (
-            "icosphere_1.3M",
-            Accel::build(&big),
-            incoherent_rays(Vec3A::splat(-0.5), Vec3A::splat(0.5), 2),
-        ),
+        ("cornell", Accel::build(&cornell_box()), incoherent_rays(Vec3A::splat(0.01), Vec3A::splat(0.99), 1)),
+        ("icosphere_1.3M", Accel::build(&big), incoherent_rays(Vec3A::splat(-0.5), Vec3A::splat(0.5), 2)),
     ];
     drop(big);
     let mut g = c.benchmark_group("bvh_trace");
-    g.sample_size(10)
-        .warm_up_time(Duration::from_secs(1))
-        .measurement_time(Duration::from_secs(3));
+    g.sample_size(10).warm_up_time(Duration::from_secs(1)).measurement_time(Duration::from_secs(3));
     g.throughput(Throughput::Elements(RAYS as u64));
     for (name, accel, rays) in &scenes {
         // Every ray starts inside a closed room / sphere: all must hit.
-        assert!(
-            rays.iter().all(|r| accel.occluded(r, f32::INFINITY)),
-            "{name}"
-        );
+        assert!(rays.iter().all(|r| accel.occluded(r, f32::INFINITY)), "{name}");
         g.bench_function(BenchmarkId::new("closest", name), |b| {
             b.iter(|| {
                 let mut sum = 0.0f32;
@@ -130,18 +98,10 @@ fn traverse(c: &mut Criterion) {
         let t_max: Vec<f32> = rays
             .iter()
             .enumerate()
-            .map(|(i, r)| {
-                accel.intersect(r, f32::INFINITY).unwrap().t * if i % 2 == 0 { 0.5 } else { 2.0 }
-            })
+            .map(|(i, r)| accel.intersect(r, f32::INFINITY).unwrap().t * if i % 2 == 0 { 0.5 } else { 2.0 })
             .collect();
         g.bench_function(BenchmarkId::new("occluded", name), |b| {
-            b.iter(|| {
-                black_box(rays)
-                    .iter()
-                    .zip(&t_max)
-                    .filter(|(r, &t)| accel.occluded(r, t))
-                    .count()
-            })
+            b.iter(|| black_box(rays).iter().zip(&t_max).filter(|(r, &t)| accel.occluded(r, t)).count())
         });
     }
     g.finish();

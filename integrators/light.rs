@@ -87,7 +87,10 @@ fn seen_directly(scene: &Scene) -> (Vec<String>, bool) {
     let mut background = false;
     for j in 0..ny {
         for i in 0..nx {
-            let raster = Vec2::new((i as f32 + 0.5) / nx as f32 * cam.width as f32, (j as f32 + 0.5) / ny as f32 * cam.height as f32);
+            let raster = Vec2::new(
+                (i as f32 + 0.5) / nx as f32 * cam.width as f32,
+                (j as f32 + 0.5) / ny as f32 * cam.height as f32,
+            );
             match scene.intersect(&cam.generate_ray(raster)) {
                 None => background |= scene.environment().is_some(),
                 Some(si) => {

@@ -79,7 +79,9 @@ impl Integrator for SimplePath {
             .iter()
             .zip(&scene.light_names)
             .filter(|(l, _)| l.is_delta_position())
-            .map(|(_, name)| format!("simple_path cannot hit the point light \"{name}\": its light is missing from the image"))
+            .map(|(_, name)| {
+                format!("simple_path cannot hit the point light \"{name}\": its light is missing from the image")
+            })
             .collect()
     }
 }

@@ -10,7 +10,7 @@
 //!   double-precision fallback. A ray through a shared edge or vertex hits at
 //!   least one of the triangles that share it, whatever the rounding.
 //! - Node: obvhs's own child-box test clamps t_near to an absolute 1e-4 (culling
-//!   every hit closer than that, i.e. most hits in a millimetre-scale scene) and
+//!   every hit closer than that: a real loss in a millimetre-scale scene) and
 //!   has no allowance for rounding, so a ray grazing a box face or edge (an
 //!   axis-aligned wall, a cube edge) can drop the box that holds the triangle
 //!   the primitive test would have hit. Ours widens every slab interval by a
@@ -25,7 +25,7 @@
 
 use crate::geometry::Ray;
 // `UVec2` is named unqualified inside obvhs's `traverse!`.
-use glam::{DVec3, UVec2, Vec3A, Vec4};
+use glam::{DVec3, UVec2, Vec3A, Vec3Swizzles, Vec4};
 use obvhs::{
     aabb::Aabb,
     bvh2::reinsertion::ReinsertionOptimizer,
@@ -33,6 +33,7 @@ use obvhs::{
     ploc::PlocBuilder,
     BvhBuildParams,
 };
+use rayon::prelude::*;
 
 /// A ray-triangle hit: distance, the triangle's index in the input order, and
 /// the barycentrics of its second and third vertices.
@@ -54,9 +55,9 @@ pub struct Accel {
 }
 
 /// Build preset: PLOC with search radius 1 at the top levels and a little
-/// reinsertion. `fast_build` builds 1.3M triangles in well under a second on
-/// two cores (see benches/bvh.rs); slower presets buy a few % of traversal
-/// speed, which a research renderer rebuilding per scene load does not need.
+/// reinsertion. `fast_build` takes about 1 s of CPU time (both threads
+/// summed) for 1.3M triangles, see benches/bvh.rs; `medium_build` took 30%
+/// longer for no fewer nodes visited per ray on incoherent rays.
 const BUILD_PARAMS: BvhBuildParams = BvhBuildParams::fast_build();
 
 impl Accel {
@@ -65,17 +66,16 @@ impl Accel {
         // obvhs gets positions 0..k, not input indices: with a single
         // primitive its PLOC skips clustering and stores the index as a
         // position (0.4.0 then panics in bvh2_to_cwbvh).
-        let mut aabbs = Vec::with_capacity(tris.len());
-        let mut kept = Vec::with_capacity(tris.len());
-        for (i, tri) in tris.iter().enumerate() {
-            if !is_degenerate(tri) {
-                aabbs.push(Aabb::new(
-                    tri[0].min(tri[1]).min(tri[2]),
-                    tri[0].max(tri[1]).max(tri[2]),
-                ));
-                kept.push(i as u32);
-            }
-        }
+        // (rayon's collect and unzip keep the input order.)
+        let (aabbs, kept): (Vec<Aabb>, Vec<u32>) = tris
+            .par_iter()
+            .enumerate()
+            .filter(|(_, tri)| !is_degenerate(tri))
+            .map(|(i, tri)| {
+                let aabb = Aabb::new(tri[0].min(tri[1]).min(tri[2]), tri[0].max(tri[1]).max(tri[2]));
+                (aabb, i as u32)
+            })
+            .unzip();
         let mut bvh = if aabbs.is_empty() {
             CwBvh::default()
         } else {
@@ -93,19 +93,9 @@ impl Accel {
             bvh2_to_cwbvh(&bvh2, p.max_prims_per_leaf.clamp(1, 3), true, false)
         };
         // From here on primitive_indices maps a slot to the input index.
-        for i in &mut bvh.primitive_indices {
-            *i = kept[*i as usize];
-        }
-        let sorted = bvh
-            .primitive_indices
-            .iter()
-            .map(|&i| SoaTriangle::new(&tris[i as usize]))
-            .collect();
-        Self {
-            bvh,
-            tris: sorted,
-            input_len: tris.len(),
-        }
+        bvh.primitive_indices.par_iter_mut().for_each(|i| *i = kept[*i as usize]);
+        let sorted = bvh.primitive_indices.par_iter().map(|&i| SoaTriangle::new(&tris[i as usize])).collect();
+        Self { bvh, tris: sorted, input_len: tris.len() }
     }
 
     /// Number of input triangles (degenerate ones included, though they are
@@ -138,25 +128,14 @@ impl Accel {
         let mut best: Option<(u32, f32, f32)> = None;
         let mut state = self.bvh.new_traversal(ray.d);
         let mut node: &CwBvhNode;
-        obvhs::traverse!(
-            self.bvh,
-            node,
-            state,
-            intersect_node(node, &pre, best_t, state.oct_inv4),
-            {
-                let slot = state.primitive_id;
-                if let Some((t, b1, b2)) = pre.intersect(&self.tris[slot as usize], best_t) {
-                    best_t = t;
-                    best = Some((slot, b1, b2));
-                }
+        obvhs::traverse!(self.bvh, node, state, intersect_node(node, &pre, best_t, state.oct_inv4), {
+            let slot = state.primitive_id;
+            if let Some((t, b1, b2)) = pre.intersect(&self.tris[slot as usize], best_t) {
+                best_t = t;
+                best = Some((slot, b1, b2));
             }
-        );
-        best.map(|(slot, b1, b2)| TriangleHit {
-            t: best_t,
-            prim: self.bvh.primitive_indices[slot as usize],
-            b1,
-            b2,
-        })
+        });
+        best.map(|(slot, b1, b2)| TriangleHit { t: best_t, prim: self.bvh.primitive_indices[slot as usize], b1, b2 })
     }
 
     /// Whether anything blocks the ray in (0, t_max); stops at the first hit.
@@ -171,21 +150,12 @@ impl Accel {
         let mut node: &CwBvhNode;
         let mut hit = false;
         'traversal: {
-            obvhs::traverse!(
-                self.bvh,
-                node,
-                state,
-                intersect_node(node, &pre, t_max, state.oct_inv4),
-                {
-                    if pre
-                        .intersect(&self.tris[state.primitive_id as usize], t_max)
-                        .is_some()
-                    {
-                        hit = true;
-                        break 'traversal;
-                    }
+            obvhs::traverse!(self.bvh, node, state, intersect_node(node, &pre, t_max, state.oct_inv4), {
+                if pre.intersect(&self.tris[state.primitive_id as usize], t_max).is_some() {
+                    hit = true;
+                    break 'traversal;
                 }
-            );
+            });
         }
         hit
     }
@@ -332,11 +302,7 @@ impl PreparedRay {
         let t_scaled = uvw.dot(z * sz);
         // Range test on t = t_scaled / det before dividing (sec. 3.4), with
         // the sign of det folded in; written so that NaN fails.
-        let (ts, ds) = if det < 0.0 {
-            (-t_scaled, -det)
-        } else {
-            (t_scaled, det)
-        };
+        let (ts, ds) = if det < 0.0 { (-t_scaled, -det) } else { (t_scaled, det) };
         if !(ts > 0.0 && ts < t_max * ds) {
             return None;
         }
@@ -376,12 +342,7 @@ fn intersect_node(node: &CwBvhNode, r: &PreparedRay, t_max: f32, oct_inv4: u32) 
 
     #[inline(always)]
     fn quad(v: &[u8; 8], i: usize) -> Vec4 {
-        Vec4::new(
-            v[i * 4] as f32,
-            v[i * 4 + 1] as f32,
-            v[i * 4 + 2] as f32,
-            v[i * 4 + 3] as f32,
-        )
+        Vec4::new(v[i * 4] as f32, v[i * 4 + 1] as f32, v[i * 4 + 2] as f32, v[i * 4 + 3] as f32)
     }
     #[inline(always)]
     fn slab(lo: &[u8; 8], hi: &[u8; 8], i: usize, neg: bool) -> (Vec4, Vec4) {
@@ -436,7 +397,8 @@ mod tests {
     fn empty_scene_misses() {
         let a = Accel::build(&[]);
         let r = Ray::new(Vec3A::ZERO, Vec3A::X);
-        assert!(a.is_empty() && a.len() == 0);
+        assert!(a.is_empty());
+        assert_eq!(a.len(), 0);
         assert!(a.intersect(&r, f32::INFINITY).is_none());
         assert!(!a.occluded(&r, f32::INFINITY));
         assert_eq!(a.bounds(), (Vec3A::ZERO, Vec3A::ZERO));

@@ -23,6 +23,13 @@
 //! last chunk is shortened to fit it (`by_spp = false` from there on). The
 //! clock counts rendering only, not the evaluation of checkpoints.
 //!
+//! Clocks: every checkpoint records wall seconds and the process's CPU
+//! seconds spent rendering (Linux /proc/self/stat, 10 ms ticks). `--clock`
+//! picks the one the budget, the time chart and the efficiency use: `wall`
+//! (default) is what a user waits; `cpu` is the work done, and stays fair
+//! between integrators on a machine shared with other jobs, where wall time
+//! depends on what else happened to run at the same moment.
+//!
 //! Integrator specs: `name` or `name:heuristic` (`bdpt:uniform`), so one run
 //! can compare MIS heuristics of the same estimator as separate lines;
 //! `--mis a,b` expands a bare `bdpt` into `bdpt:a`, `bdpt:b`.
@@ -41,7 +48,8 @@
 //! | --reference-integrator   | bdpt           | its integrator (power heuristic)                    |
 //! | --reference-passes       | 8              | independent passes it is made of (block errors)     |
 //! | --reference-out          | DIR/reference.exr | where the rendered reference and sidecar go      |
-//! | --time                   | -              | wall-time budget per integrator, seconds            |
+//! | --time                   | -              | time budget per integrator, seconds (of `--clock`)  |
+//! | --clock                  | wall           | `wall` or `cpu` (CPU seconds of all render threads) |
 //! | --spp                    | -              | spp cap per integrator (deterministic runs)         |
 //! | --width, --height        | the scene's    | resolution                                          |
 //! | --seed                   | scene's, else 0 | base seed of the run                               |
@@ -119,9 +127,13 @@ pub struct ConvergeArgs {
     /// Where a reference rendered here is written (default DIR/reference.exr).
     #[arg(long)]
     pub reference_out: Option<PathBuf>,
-    /// Wall-time budget per integrator, in seconds.
+    /// Time budget per integrator, in seconds of `--clock`.
     #[arg(long)]
     pub time: Option<f64>,
+    /// What seconds are: `wall` (elapsed) or `cpu` (CPU time of all render
+    /// threads: fair on a machine shared with other jobs).
+    #[arg(long, value_enum, default_value = "wall")]
+    pub clock: Clock,
     /// Samples-per-pixel cap per integrator (with no --time: a fully
     /// deterministic run).
     #[arg(long)]
@@ -174,6 +186,7 @@ pub fn command(a: ConvergeArgs) -> Result<()> {
         integrators: specs,
         reference,
         time: a.time,
+        clock: a.clock,
         max_spp: a.spp,
         out: a.out,
         resolution,
@@ -255,6 +268,38 @@ fn heuristic_name(h: MisHeuristic) -> &'static str {
     }
 }
 
+/// The clock that budgets, charts and efficiencies use.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Clock {
+    /// Elapsed (wall-clock) seconds of rendering.
+    #[default]
+    Wall,
+    /// CPU seconds of all rendering threads (Linux only).
+    Cpu,
+}
+
+impl Clock {
+    fn unit(self) -> &'static str {
+        match self {
+            Clock::Wall => "seconds",
+            Clock::Cpu => "CPU seconds",
+        }
+    }
+}
+
+/// CPU time (user + system) of this process so far, all threads, from
+/// /proc/self/stat (in USER_HZ = 100 ticks per second on Linux).
+pub fn process_cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the parenthesised command name, which may contain spaces:
+    // state is field 3, utime 14 and stime 15.
+    let rest = &stat[stat.rfind(')')? + 1..];
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks = f.get(11)?.parse::<u64>().ok()? + f.get(12)?.parse::<u64>().ok()?;
+    Some(ticks as f64 / 100.0)
+}
+
 /// Where the reference comes from.
 #[derive(Clone, Debug)]
 pub enum ReferenceSource {
@@ -271,8 +316,9 @@ pub struct ConvergeConfig {
     pub scene: PathBuf,
     pub integrators: Vec<IntegratorSpec>,
     pub reference: ReferenceSource,
-    /// Wall-time budget per integrator (seconds of rendering).
+    /// Time budget per integrator (seconds of rendering on `clock`).
     pub time: Option<f64>,
+    pub clock: Clock,
     /// Samples-per-pixel cap per integrator.
     pub max_spp: Option<u32>,
     pub out: PathBuf,
@@ -295,14 +341,26 @@ pub struct ConvergeConfig {
 #[derive(Clone, Copy, Debug, Serialize, Deserialize)]
 pub struct Checkpoint {
     pub spp: u32,
-    /// Seconds of rendering so far (checkpoint evaluation excluded).
+    /// Wall seconds of rendering so far (checkpoint evaluation excluded).
     pub seconds: f64,
+    /// CPU seconds of rendering so far, all threads (None where unavailable).
+    pub cpu_seconds: Option<f64>,
     pub rel_mse: f64,
     pub mse: f64,
     pub mae: f64,
     /// True when the image is fixed by (scene, seed, spp): the checkpoint's
     /// errors are bit-reproducible (its seconds are not).
     pub by_spp: bool,
+}
+
+impl Checkpoint {
+    /// Seconds on `clock` (CPU falls back to wall where CPU time is unknown).
+    pub fn time(&self, clock: Clock) -> f64 {
+        match clock {
+            Clock::Wall => self.seconds,
+            Clock::Cpu => self.cpu_seconds.unwrap_or(self.seconds),
+        }
+    }
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -314,14 +372,16 @@ pub struct IntegratorResult {
     /// then converges to something else than the reference).
     pub warnings: Vec<String>,
     pub checkpoints: Vec<Checkpoint>,
-    /// The last checkpoint's values.
+    /// The last checkpoint's values (`seconds` on the run's clock).
     pub spp: u32,
     pub seconds: f64,
+    pub wall_seconds: f64,
     pub rel_mse: f64,
     pub mse: f64,
     pub mae: f64,
-    /// 1 / (relMSE x seconds) at the last checkpoint.
+    /// 1 / (relMSE x seconds) at the last checkpoint, seconds on the run's clock.
     pub efficiency: f64,
+    /// Samples per wall second.
     pub samples_per_second: f64,
     /// Least-squares slope of ln relMSE against ln spp over the grid
     /// checkpoints with spp >= 4 (-1 for an unbiased estimator, flatter once
@@ -359,6 +419,7 @@ pub struct ConvergeResults {
     pub height: u32,
     pub seed: u64,
     pub budget_seconds: Option<f64>,
+    pub clock: Clock,
     pub max_spp: Option<u32>,
     pub threads: usize,
     pub max_depth: u32,
@@ -443,7 +504,11 @@ pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
         if result.dropped.total() > 0 {
             notes.push(format!(
                 "{}: dropped {} samples ({} NaN, {} infinite, {} negative)",
-                spec.label, result.dropped.total(), result.dropped.nan, result.dropped.infinite, result.dropped.negative
+                spec.label,
+                result.dropped.total(),
+                result.dropped.nan,
+                result.dropped.infinite,
+                result.dropped.negative
             ));
         }
         if cfg.save_exr {
@@ -471,6 +536,7 @@ pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
         height: h,
         seed,
         budget_seconds: cfg.time,
+        clock: cfg.clock,
         max_spp: cfg.max_spp,
         threads: if cfg.threads == 0 { rayon::current_num_threads() } else { cfg.threads },
         max_depth,
@@ -541,7 +607,13 @@ fn obtain_reference(
         }
     };
     if let Some(m) = &meta {
-        ensure!((m.width, m.height) == (w, h), "{} is {}x{} but the run renders {w}x{h}", path.display(), m.width, m.height);
+        ensure!(
+            (m.width, m.height) == (w, h),
+            "{} is {}x{} but the run renders {w}x{h}",
+            path.display(),
+            m.width,
+            m.height
+        );
         let seeds = m.seed..m.seed.saturating_add(m.passes as u64);
         if seeds.contains(&seed) {
             notes.push(format!(
@@ -572,9 +644,11 @@ fn obtain_reference(
 /// when neighbouring pixels are independent, divided by ref^2 + 0.01 as relMSE is.
 fn noise_floor(m: &ReferenceMeta) -> f64 {
     let b2 = (m.block * m.block) as f64;
-    let terms = m.block_mean.iter().zip(&m.block_stderr).flat_map(|(mean, se)| {
-        (0..3).map(move |c| b2 * se[c] * se[c] / (mean[c] * mean[c] + 0.01))
-    });
+    let terms = m
+        .block_mean
+        .iter()
+        .zip(&m.block_stderr)
+        .flat_map(|(mean, se)| (0..3).map(move |c| b2 * se[c] * se[c] / (mean[c] * mean[c] + 0.01)));
     let (sum, n) = terms.fold((0.0, 0usize), |(s, n), t| (s + t, n + 1));
     if n == 0 {
         0.0
@@ -623,10 +697,14 @@ fn converge_one(
         None => progress_bar(cfg.progress, &spec.label, cfg.max_spp.unwrap_or(1) as u64, "spp"),
     };
     let mut n = 0u32;
-    let mut seconds = 0.0f64;
+    let (mut wall, mut cpu) = (0.0f64, Some(0.0f64));
     let mut by_spp = true;
     let mut checkpoints: Vec<Checkpoint> = Vec::new();
     loop {
+        let seconds = match cfg.clock {
+            Clock::Wall => wall,
+            Clock::Cpu => cpu.unwrap_or(wall),
+        };
         if cfg.max_spp.is_some_and(|m| n >= m) || cfg.time.is_some_and(|t| seconds >= t) {
             break;
         }
@@ -645,17 +723,24 @@ fn converge_one(
                 by_spp = false;
             }
         }
+        let cpu0 = process_cpu_seconds();
         let stats = render(scene, integrator, &opts, &mut film, n..target);
+        cpu = match (cpu, cpu0, process_cpu_seconds()) {
+            (Some(c), Some(a), Some(b)) => Some(c + (b - a)),
+            _ => None,
+        };
         n = target;
-        seconds += stats.wall.as_secs_f64();
+        wall += stats.wall.as_secs_f64();
         let image = film.image();
         let (rel, mse, mae) = errors(&image, reference);
-        checkpoints.push(Checkpoint { spp: n, seconds, rel_mse: rel, mse, mae, by_spp });
+        let c = Checkpoint { spp: n, seconds: wall, cpu_seconds: cpu, rel_mse: rel, mse, mae, by_spp };
+        checkpoints.push(c);
+        let seconds = c.time(cfg.clock);
         bar.set_position(match cfg.time {
             Some(_) => (seconds * 1000.0) as u64,
             None => n as u64,
         });
-        bar.set_message(format!("{n} spp, {seconds:.2} s, relMSE {rel:.3e}"));
+        bar.set_message(format!("{n} spp, {seconds:.2} {}, relMSE {rel:.3e}", cfg.clock.unit()));
     }
     let last = *checkpoints.last().context("no checkpoint rendered")?;
     bar.finish();
@@ -666,11 +751,12 @@ fn converge_one(
         mis: heuristic_name(spec.mis).to_string(),
         warnings,
         spp: last.spp,
-        seconds: last.seconds,
+        seconds: last.time(cfg.clock),
+        wall_seconds: last.seconds,
         rel_mse: last.rel_mse,
         mse: last.mse,
         mae: last.mae,
-        efficiency: 1.0 / (last.rel_mse * last.seconds),
+        efficiency: 1.0 / (last.rel_mse * last.time(cfg.clock)),
         samples_per_second: last.spp as f64 * (w * h) as f64 / last.seconds,
         slope,
         dropped: film.dropped,
@@ -694,7 +780,12 @@ pub fn fit_slope(points: impl Iterator<Item = (f64, f64)>) -> Option<f64> {
 
 // ------------------------------------------------------------------ outputs
 
-fn write_outputs(cfg: &ConvergeConfig, r: &ConvergeResults, reference: &[[f32; 3]], finals: &[Vec<[f32; 3]>]) -> Result<()> {
+fn write_outputs(
+    cfg: &ConvergeConfig,
+    r: &ConvergeResults,
+    reference: &[[f32; 3]],
+    finals: &[Vec<[f32; 3]>],
+) -> Result<()> {
     let dir = &cfg.out;
     std::fs::write(dir.join("results.csv"), results_csv(r)).context("cannot write results.csv")?;
     write_json(&dir.join("results.json"), r)?;
@@ -702,7 +793,9 @@ fn write_outputs(cfg: &ConvergeConfig, r: &ConvergeResults, reference: &[[f32; 3
     let spp_svg = chart_svg(r, Axis::Spp)?;
     for (name, svg) in [("error-vs-time", &time_svg), ("error-vs-spp", &spp_svg)] {
         std::fs::write(dir.join(format!("{name}.svg")), svg).with_context(|| format!("cannot write {name}.svg"))?;
-        svg_to_png(svg, 1.0)?.save(dir.join(format!("{name}.png"))).with_context(|| format!("cannot write {name}.png"))?;
+        svg_to_png(svg, 1.0)?
+            .save(dir.join(format!("{name}.png")))
+            .with_context(|| format!("cannot write {name}.png"))?;
     }
     let scale = match cfg.exposure {
         Some(e) => 2f32.powf(e),
@@ -723,21 +816,25 @@ fn write_outputs(cfg: &ConvergeConfig, r: &ConvergeResults, reference: &[[f32; 3
         .integrators
         .iter()
         .zip(&maps)
-        .map(|(res, m)| (format!("{}: relMSE {:.2e}", res.label, res.rel_mse), false_colour(m, r.width, r.height, lo, hi)))
+        .map(|(res, m)| {
+            (format!("{}: relMSE {:.2e}", res.label, res.rel_mse), false_colour(m, r.width, r.height, lo, hi))
+        })
         .collect();
     compose(&panels, Some((lo, hi)))?.save(dir.join("errors.png")).context("cannot write errors.png")?;
     std::fs::write(dir.join("report.md"), report_md(r)).context("cannot write report.md")?;
     Ok(())
 }
 
-/// One row per checkpoint: `integrator,spp,seconds,rel_mse,mse,mae,by_spp`.
+/// One row per checkpoint: `integrator,spp,seconds,cpu_seconds,rel_mse,mse,mae,by_spp`
+/// (seconds: wall; cpu_seconds: empty where unavailable).
 pub fn results_csv(r: &ConvergeResults) -> String {
-    let mut s = String::from("integrator,spp,seconds,rel_mse,mse,mae,by_spp\n");
+    let mut s = String::from("integrator,spp,seconds,cpu_seconds,rel_mse,mse,mae,by_spp\n");
     for res in &r.integrators {
         for c in &res.checkpoints {
+            let cpu = c.cpu_seconds.map_or(String::new(), |v| format!("{v:.2}"));
             let _ = writeln!(
                 s,
-                "{},{},{:.6},{:.6e},{:.6e},{:.6e},{}",
+                "{},{},{:.6},{cpu},{:.6e},{:.6e},{:.6e},{}",
                 res.label, c.spp, c.seconds, c.rel_mse, c.mse, c.mae, c.by_spp
             );
         }
@@ -747,8 +844,9 @@ pub fn results_csv(r: &ConvergeResults) -> String {
 
 /// The efficiency table in Markdown, best first.
 pub fn efficiency_table(r: &ConvergeResults) -> String {
-    let mut s = String::from(
-        "| rank | integrator | spp | seconds | Msamples/s | relMSE | MSE | MAE | efficiency 1/(relMSE x s) | vs best | slope (spp) |\n\
+    let unit = r.clock.unit();
+    let mut s = format!(
+        "| rank | integrator | spp | {unit} | Msamples/s (wall) | relMSE | MSE | MAE | efficiency 1/(relMSE x s) | vs best | slope (spp) |\n\
          |---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     let order = r.ranking();
@@ -781,9 +879,10 @@ fn report_md(r: &ConvergeResults) -> String {
     if let Some(c) = &r.scene_comment {
         let _ = writeln!(s, "> {c}\n");
     }
+    let unit = r.clock.unit();
     let budget = match (r.budget_seconds, r.max_spp) {
-        (Some(t), Some(n)) => format!("{t} s or {n} spp per integrator, whichever comes first"),
-        (Some(t), None) => format!("{t} s per integrator"),
+        (Some(t), Some(n)) => format!("{t} {unit} or {n} spp per integrator, whichever comes first"),
+        (Some(t), None) => format!("{t} {unit} per integrator"),
         (None, Some(n)) => format!("{n} spp per integrator"),
         (None, None) => "-".to_string(),
     };
@@ -802,16 +901,20 @@ fn report_md(r: &ConvergeResults) -> String {
     }
     if let Some(f) = rf.noise_floor {
         let how = rf.noise_floor_method.as_deref().unwrap_or("-");
-        let _ = write!(s, "; its own noise adds about {f:.2e} to every relMSE (grey dashed line; estimated from: {how})");
+        let _ =
+            write!(s, "; its own noise adds about {f:.2e} to every relMSE (grey dashed line; estimated from: {how})");
     }
     let _ = writeln!(s, "\n- command: `{}`\n", r.command);
     let _ = writeln!(s, "## Efficiency (last checkpoint, best first)\n\n{}", efficiency_table(r));
     let _ = writeln!(
         s,
-        "Efficiency = 1 / (relMSE x seconds of rendering). Slope: least-squares slope of log relMSE against log spp \
+        "Efficiency = 1 / (relMSE x {unit} of rendering). Slope: least-squares slope of log relMSE against log spp \
          over the checkpoints from 4 spp (-1 for an unbiased estimator until the reference's own noise or a bias \
-         flattens it). (!) marks integrators that cannot sample some paths of this scene:\n"
+         flattens it).\n"
     );
+    if r.integrators.iter().any(|x| !x.warnings.is_empty()) {
+        let _ = writeln!(s, "(!) marks integrators that cannot sample some paths of this scene:\n");
+    }
     for x in r.integrators.iter().filter(|x| !x.warnings.is_empty()) {
         for w in &x.warnings {
             let _ = writeln!(s, "- {}: {w}", x.label);
@@ -871,7 +974,7 @@ fn log_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
 
 fn chart_svg(r: &ConvergeResults, axis: Axis) -> Result<String> {
     let x_of = |c: &Checkpoint| match axis {
-        Axis::Seconds => c.seconds,
+        Axis::Seconds => c.time(r.clock),
         Axis::Spp => c.spp as f64,
     };
     let all = || r.integrators.iter().flat_map(|x| x.checkpoints.iter());
@@ -896,7 +999,10 @@ fn chart_svg(r: &ConvergeResults, axis: Axis) -> Result<String> {
         chart
             .configure_mesh()
             .x_desc(match axis {
-                Axis::Seconds => "seconds of rendering (log)",
+                Axis::Seconds => match r.clock {
+                    Clock::Wall => "seconds of rendering (log)",
+                    Clock::Cpu => "CPU seconds of rendering, all threads (log)",
+                },
                 Axis::Spp => "samples per pixel (log)",
             })
             .y_desc("relMSE (log)")
@@ -911,8 +1017,12 @@ fn chart_svg(r: &ConvergeResults, axis: Axis) -> Result<String> {
         for (i, x) in r.integrators.iter().enumerate() {
             let (cr, cg, cb) = PALETTE[i % PALETTE.len()];
             let colour = RGBColor(cr, cg, cb);
-            let pts: Vec<(f64, f64)> =
-                x.checkpoints.iter().filter(|c| c.rel_mse > 0.0).map(|c| (x_of(c), c.rel_mse)).collect();
+            let pts: Vec<(f64, f64)> = x
+                .checkpoints
+                .iter()
+                .filter(|c| c.rel_mse > 0.0 && x_of(c) > 0.0)
+                .map(|c| (x_of(c), c.rel_mse))
+                .collect();
             chart
                 .draw_series(LineSeries::new(pts.clone(), colour.stroke_width(2)))
                 .map_err(plot_err)?
@@ -922,8 +1032,12 @@ fn chart_svg(r: &ConvergeResults, axis: Axis) -> Result<String> {
         }
         if axis == Axis::Spp {
             // Slope -1 through the geometric mean of the first checkpoints.
-            let firsts: Vec<f64> =
-                r.integrators.iter().filter_map(|x| x.checkpoints.first()).map(|c| (c.rel_mse * c.spp as f64).ln()).collect();
+            let firsts: Vec<f64> = r
+                .integrators
+                .iter()
+                .filter_map(|x| x.checkpoints.first())
+                .map(|c| (c.rel_mse * c.spp as f64).ln())
+                .collect();
             if !firsts.is_empty() {
                 let k = (firsts.iter().sum::<f64>() / firsts.len() as f64).exp();
                 let line: Vec<(f64, f64)> = [x0, x1].into_iter().map(|x| (x, k / x)).collect();
@@ -1021,7 +1135,9 @@ pub fn pixel_errors(image: &[[f32; 3]], reference: &[[f32; 3]]) -> Vec<f64> {
     image
         .iter()
         .zip(reference)
-        .map(|(x, r)| (0..3).map(|c| (x[c] as f64 - r[c] as f64).powi(2) / ((r[c] as f64).powi(2) + 0.01)).sum::<f64>() / 3.0)
+        .map(|(x, r)| {
+            (0..3).map(|c| (x[c] as f64 - r[c] as f64).powi(2) / ((r[c] as f64).powi(2) + 0.01)).sum::<f64>() / 3.0
+        })
         .collect()
 }
 
@@ -1173,7 +1289,8 @@ mod tests {
     #[test]
     fn svg_text_is_rasterised_with_the_embedded_font() {
         let blank = r#"<svg xmlns="http://www.w3.org/2000/svg" width="60" height="30"><rect width="60" height="30" fill="white"/></svg>"#;
-        let text = blank.replace("</svg>", r#"<text x="5" y="20" font-family="sans-serif" font-size="16">Ag</text></svg>"#);
+        let text =
+            blank.replace("</svg>", r#"<text x="5" y="20" font-family="sans-serif" font-size="16">Ag</text></svg>"#);
         let dark = |img: &RgbImage| img.pixels().filter(|p| p.0[0] < 128).count();
         assert_eq!(dark(&svg_to_png(blank, 1.0).unwrap()), 0);
         assert!(dark(&svg_to_png(&text, 1.0).unwrap()) > 20, "no glyphs drawn");

@@ -65,7 +65,8 @@ pub struct Film {
 
 impl Film {
     pub fn new(width: u32, height: u32) -> Self {
-        let n = (width * height) as usize;
+        // In usize: width * height in u32 wraps for images of 2^32 pixels or more.
+        let n = width as usize * height as usize;
         Self { width, height, pixels: vec![[0.0; 3]; n], splats: vec![[0.0; 3]; n], spp: 0, dropped: DroppedSamples::default() }
     }
 

@@ -69,10 +69,7 @@ pub fn offset_ray_origin(p: Vec3A, n: Vec3A, w: Vec3A) -> Vec3A {
     const ORIGIN: f32 = 1.0 / 32.0;
     const FLOAT_SCALE: f32 = 1.0 / 65536.0;
     const INT_SCALE: f32 = 256.0;
-    debug_assert!(
-        (n.length_squared() - 1.0).abs() < 1e-3,
-        "offset_ray_origin wants a unit normal, got {n}"
-    );
+    debug_assert!((n.length_squared() - 1.0).abs() < 1e-3, "offset_ray_origin wants a unit normal, got {n}");
     let n = if n.dot(w) < 0.0 { -n } else { n };
     let offset = |p: f32, n: f32| -> f32 {
         if p.abs() < ORIGIN {

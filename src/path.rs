@@ -105,18 +105,43 @@ pub struct PathScratch {
 
 impl Vertex {
     fn new(kind: VertexKind, si: SurfaceInteraction, beta: SampledSpectrum, pdf_fwd: f32) -> Self {
-        Self { kind, si, beta, delta: false, pdf_fwd, pdf_rev: 0.0 }
+        Self {
+            kind,
+            si,
+            beta,
+            delta: false,
+            pdf_fwd,
+            pdf_rev: 0.0,
+        }
     }
 
     fn endpoint(kind: VertexKind, p: Vec3A, n: Vec3A, wo: Vec3A, light: Option<u32>) -> SurfaceInteraction {
-        let frame = if n == Vec3A::ZERO { Frame::from_normal(Vec3A::Z) } else { Frame::from_normal(n) };
+        let frame = if n == Vec3A::ZERO {
+            Frame::from_normal(Vec3A::Z)
+        } else {
+            Frame::from_normal(n)
+        };
         debug_assert!(kind != VertexKind::Surface);
-        SurfaceInteraction { p, t: 0.0, ng: n, frame, wo, material: u32::MAX, light }
+        SurfaceInteraction {
+            p,
+            t: 0.0,
+            ng: n,
+            frame,
+            wo,
+            material: u32::MAX,
+            light,
+        }
     }
 
     /// The pinhole as the first camera vertex, with throughput `beta`.
     pub fn camera(scene: &Scene, beta: SampledSpectrum) -> Self {
-        let si = Self::endpoint(VertexKind::Camera, scene.camera.position, Vec3A::ZERO, Vec3A::ZERO, None);
+        let si = Self::endpoint(
+            VertexKind::Camera,
+            scene.camera.position,
+            Vec3A::ZERO,
+            Vec3A::ZERO,
+            None,
+        );
         Self::new(VertexKind::Camera, si, beta, 0.0)
     }
 
@@ -207,7 +232,11 @@ impl Vertex {
         if next.is_infinite() {
             return pdf;
         }
-        let cos = if next.is_on_surface() { next.si.ng.dot(w).abs() } else { 1.0 };
+        let cos = if next.is_on_surface() {
+            next.si.ng.dot(w).abs()
+        } else {
+            1.0
+        };
         pdf * cos * inv_d2
     }
 
@@ -222,7 +251,12 @@ impl Vertex {
         match self.kind {
             VertexKind::Surface => {
                 let bsdf = scene.bsdf(&self.si);
-                let f = bsdf.eval(self.si.frame.to_local(self.si.wo), self.si.frame.to_local(wi), lambda, mode);
+                let f = bsdf.eval(
+                    self.si.frame.to_local(self.si.wo),
+                    self.si.frame.to_local(wi),
+                    lambda,
+                    mode,
+                );
                 match mode {
                     TransportMode::Radiance => f,
                     TransportMode::Importance => f * self.si.shading_correction(self.si.wo, wi),
@@ -240,7 +274,14 @@ impl Vertex {
     /// `next`, having arrived from `prev` (pbrt `Vertex::Pdf`). `mode` is the
     /// transport mode of the walk that would make that choice. A light origin
     /// gives its emission density (`pdf_light`).
-    pub fn pdf(&self, scene: &Scene, prev: Option<&Vertex>, next: &Vertex, lambda: &SampledWavelengths, mode: TransportMode) -> f32 {
+    pub fn pdf(
+        &self,
+        scene: &Scene,
+        prev: Option<&Vertex>,
+        next: &Vertex,
+        lambda: &SampledWavelengths,
+        mode: TransportMode,
+    ) -> f32 {
         let Some((wn, _)) = self.direction_to(next) else {
             return 0.0;
         };
@@ -325,14 +366,30 @@ pub fn camera_subpath(
     // beta = We cos / (pdf_pos pdf_dir) = 1 for a pixel's box filter (camera.rs).
     path.push(Vertex::camera(scene, SampledSpectrum::ONE));
     let pdf_dir = scene.camera.pdf_we_dir(ray.d);
-    random_walk(scene, ray, SampledSpectrum::ONE, pdf_dir, sampler, lambda, TransportMode::Radiance, max_depth as usize + 2, path);
+    random_walk(
+        scene,
+        ray,
+        SampledSpectrum::ONE,
+        pdf_dir,
+        sampler,
+        lambda,
+        TransportMode::Radiance,
+        max_depth as usize + 2,
+        path,
+    );
 }
 
 /// Generates a light subpath into `path` (cleared first): a light chosen by
 /// power, an emitted ray from `sample_le`, then an importance-mode random
 /// walk, up to `max_depth` + 1 vertices (pbrt-v3 `GenerateLightSubpath`).
 /// Leaves `path` empty if the scene has no light or emission fails.
-pub fn light_subpath(scene: &Scene, sampler: &mut Sampler, lambda: &mut SampledWavelengths, max_depth: u32, path: &mut Vec<Vertex>) {
+pub fn light_subpath(
+    scene: &Scene,
+    sampler: &mut Sampler,
+    lambda: &mut SampledWavelengths,
+    max_depth: u32,
+    path: &mut Vec<Vertex>,
+) {
     path.clear();
     let u_light = sampler.get1d();
     let (u1, u2) = (sampler.get2d(), sampler.get2d());
@@ -364,7 +421,17 @@ pub fn light_subpath(scene: &Scene, sampler: &mut Sampler, lambda: &mut SampledW
         (v, v.beta * (cos / le.pdf_dir), le.pdf_dir)
     };
     path.push(origin);
-    random_walk(scene, ray, beta, pdf_walk, sampler, lambda, TransportMode::Importance, max_depth as usize + 1, path);
+    random_walk(
+        scene,
+        ray,
+        beta,
+        pdf_walk,
+        sampler,
+        lambda,
+        TransportMode::Importance,
+        max_depth as usize + 1,
+        path,
+    );
 }
 
 /// Extends `path` (holding the subpath's endpoint) by tracing `ray` and
@@ -385,7 +452,7 @@ fn random_walk(
     path: &mut Vec<Vertex>,
 ) {
     let beta0 = beta.max_component();
-    if !(beta0 > 0.0) || !beta0.is_finite() {
+    if beta0 <= 0.0 || !beta0.is_finite() {
         return;
     }
     let mut eta_scale = 1.0;
@@ -455,11 +522,15 @@ pub fn connect_to_camera(scene: &Scene, v: &Vertex, lambda: &SampledWavelengths)
         return None;
     }
     let cs: CameraWiSample = scene.camera.sample_wi(v.p())?;
-    if !(cs.pdf_w > 0.0) || cs.we == 0.0 {
+    if cs.pdf_w <= 0.0 || cs.pdf_w.is_nan() || cs.we == 0.0 {
         return None;
     }
     let camera = Vertex::camera(scene, SampledSpectrum::splat(cs.we / cs.pdf_w));
-    let cos = if v.is_on_surface() { cs.wi.dot(v.si.frame.n).abs() } else { 1.0 };
+    let cos = if v.is_on_surface() {
+        cs.wi.dot(v.si.frame.n).abs()
+    } else {
+        1.0
+    };
     let l = v.beta * v.f(scene, &camera, lambda, TransportMode::Importance) * camera.beta * cos;
     if l.is_black() || !scene.unoccluded(v.p(), v.si.ng, camera.p(), Vec3A::ZERO) {
         return None;

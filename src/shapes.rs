@@ -18,11 +18,7 @@ pub struct Mesh {
 impl Mesh {
     /// Two triangles (0,1,2), (0,2,3); flat.
     pub fn quad(corners: [Vec3A; 4]) -> Mesh {
-        Mesh {
-            positions: corners.to_vec(),
-            normals: Vec::new(),
-            indices: vec![[0, 1, 2], [0, 2, 3]],
-        }
+        Mesh { positions: corners.to_vec(), normals: Vec::new(), indices: vec![[0, 1, 2], [0, 2, 3]] }
     }
 
     /// Axis-aligned box, 12 triangles wound outward; flat.
@@ -46,15 +42,8 @@ impl Mesh {
             [0, 2, 3, 1], // -z
             [4, 5, 7, 6], // +z
         ];
-        let indices = faces
-            .iter()
-            .flat_map(|f| [[f[0], f[1], f[2]], [f[0], f[2], f[3]]])
-            .collect();
-        Mesh {
-            positions,
-            normals: Vec::new(),
-            indices,
-        }
+        let indices = faces.iter().flat_map(|f| [[f[0], f[1], f[2]], [f[0], f[2], f[3]]]).collect();
+        Mesh { positions, normals: Vec::new(), indices }
     }
 
     /// Icosphere: an icosahedron whose faces are split in four `subdivisions`
@@ -157,9 +146,7 @@ impl Mesh {
     }
 
     pub fn triangles(&self) -> impl Iterator<Item = [Vec3A; 3]> + '_ {
-        self.indices
-            .iter()
-            .map(|t| t.map(|i| self.positions[i as usize]))
+        self.indices.iter().map(|t| t.map(|i| self.positions[i as usize]))
     }
 
     /// Number of triangles.
@@ -182,9 +169,7 @@ mod tests {
     }
 
     fn area(m: &Mesh) -> f64 {
-        m.triangles()
-            .map(|t| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length() as f64)
-            .sum()
+        m.triangles().map(|t| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length() as f64).sum()
     }
 
     fn assert_outward(m: &Mesh, center: Vec3A) {
@@ -213,18 +198,8 @@ mod tests {
         let expected = 2.0 * (s.x * s.y + s.y * s.z + s.z * s.x) as f64;
         assert!((area(&m) - expected).abs() < 1e-5);
         // Each axis direction is covered by exactly two triangles.
-        for axis in [
-            Vec3A::X,
-            Vec3A::Y,
-            Vec3A::Z,
-            -Vec3A::X,
-            -Vec3A::Y,
-            -Vec3A::Z,
-        ] {
-            let k = m
-                .triangles()
-                .filter(|t| normal(t).dot(axis) > 0.999)
-                .count();
+        for axis in [Vec3A::X, Vec3A::Y, Vec3A::Z, -Vec3A::X, -Vec3A::Y, -Vec3A::Z] {
+            let k = m.triangles().filter(|t| normal(t).dot(axis) > 0.999).count();
             assert_eq!(k, 2, "{axis}");
         }
     }
@@ -259,11 +234,7 @@ mod tests {
         let scale = Vec3A::new(2.0, 0.5, 1.0);
         let t = Vec3A::new(3.0, -1.0, 2.0);
         for mirror in [false, true] {
-            let s = if mirror {
-                scale * Vec3A::new(-1.0, 1.0, 1.0)
-            } else {
-                scale
-            };
+            let s = if mirror { scale * Vec3A::new(-1.0, 1.0, 1.0) } else { scale };
             let m3 = Mat3::from_quat(Quat::from_rotation_y(0.7)) * Mat3::from_diagonal(s.into());
             let a = Affine3A::from_mat3_translation(m3, t.into());
             let mut m = base.clone();

@@ -64,12 +64,7 @@ fn brute(tris: &[[Vec3A; 3]], ray: &Ray, t_max: f32) -> Option<TriangleHit> {
     for (i, tri) in tris.iter().enumerate() {
         let tm = best.map_or(t_max, |b| b.t);
         if let Some((t, b1, b2)) = intersect_triangle(ray, tri, tm) {
-            best = Some(TriangleHit {
-                t,
-                prim: i as u32,
-                b1,
-                b2,
-            });
+            best = Some(TriangleHit { t, prim: i as u32, b1, b2 });
         }
     }
     best
@@ -130,11 +125,7 @@ fn comparison_scenes() -> Vec<(&'static str, Vec<[Vec3A; 3]>)> {
 fn random_ray(rng: &mut Rand) -> (Ray, f32) {
     let o = rng.in_cube(1.6);
     let d = rng.unit() * [1.0, 0.01, 37.0][rng.below(3)];
-    let t_max = if rng.f() < 0.5 {
-        f32::INFINITY
-    } else {
-        rng.range(0.0, 3.0) / d.length()
-    };
+    let t_max = if rng.f() < 0.5 { f32::INFINITY } else { rng.range(0.0, 3.0) / d.length() };
     (Ray::new(o, d), t_max)
 }
 
@@ -208,11 +199,7 @@ fn bvh_matches_double_precision_reference() {
                 assert_eq!(g.prim as usize, k, "{name} ray {i}");
                 // f32 error scales with the coordinates (~1 here), not t.
                 let dl = ray.d.length() as f64;
-                assert!(
-                    (g.t as f64 - t).abs() * dl <= 1e-5 * (1.0 + t * dl),
-                    "{name} ray {i}: {} vs {t}",
-                    g.t
-                );
+                assert!((g.t as f64 - t).abs() * dl <= 1e-5 * (1.0 + t * dl), "{name} ray {i}: {} vs {t}", g.t);
             }
             match got {
                 Some(g) => {
@@ -224,10 +211,7 @@ fn bvh_matches_double_precision_reference() {
                     let dl = ray.d.length() as f64;
                     assert!((g.t as f64 - t).abs() * dl <= 1e-5 * (1.0 + t * dl), "{name} ray {i}");
                     if let Some(tc) = closest_inside {
-                        assert!(
-                            (g.t as f64 - tc) * dl <= 1e-5 * (1.0 + tc * dl),
-                            "{name} ray {i}: not closest"
-                        );
+                        assert!((g.t as f64 - tc) * dl <= 1e-5 * (1.0 + tc * dl), "{name} ray {i}: not closest");
                     }
                 }
                 None => {
@@ -302,22 +286,10 @@ fn rays_through_shared_edges_and_vertices_never_slip_through() {
     let mut spun = Mesh::cuboid(Vec3A::splat(-1.0), Vec3A::splat(1.0));
     spun.transform(Affine3A::from_rotation_x(0.3) * Affine3A::from_rotation_y(0.6));
     let meshes = [
-        (
-            "cuboid",
-            Mesh::cuboid(Vec3A::new(-1.0, -0.5, 0.0), Vec3A::new(2.0, 1.0, 3.0)),
-            0.99,
-        ),
+        ("cuboid", Mesh::cuboid(Vec3A::new(-1.0, -0.5, 0.0), Vec3A::new(2.0, 1.0, 3.0)), 0.99),
         ("rotated cuboid", spun, 0.5),
-        (
-            "icosphere",
-            Mesh::sphere(Vec3A::new(0.2, 0.3, -0.1), 1.0, 3, false),
-            0.6,
-        ),
-        (
-            "fine icosphere",
-            Mesh::sphere(Vec3A::new(1e3, 0.0, 0.0), 7.0, 5, false),
-            0.6,
-        ),
+        ("icosphere", Mesh::sphere(Vec3A::new(0.2, 0.3, -0.1), 1.0, 3, false), 0.6),
+        ("fine icosphere", Mesh::sphere(Vec3A::new(1e3, 0.0, 0.0), 7.0, 5, false), 0.6),
     ];
     for (name, mesh, inner) in meshes {
         let tris = tris_of(&mesh);
@@ -336,10 +308,7 @@ fn rays_through_shared_edges_and_vertices_never_slip_through() {
             for o in [c, c + rng.in_cube(1.0) * half * inner * 0.5] {
                 let ray = Ray::new(o, target - o);
                 rays += 1;
-                assert!(
-                    accel.intersect(&ray, f32::INFINITY).is_some(),
-                    "{name}: ray {j} to {target} slipped through"
-                );
+                assert!(accel.intersect(&ray, f32::INFINITY).is_some(), "{name}: ray {j} to {target} slipped through");
                 assert!(accel.occluded(&ray, f32::INFINITY), "{name}: ray {j}");
                 if tris.len() < 100 || j % 64 == 0 {
                     naive_misses += (!naive_hits(&ray, &tris)) as usize;
@@ -377,10 +346,7 @@ fn rays_through_shared_edges_and_vertices_never_slip_through() {
         }
     }
     eprintln!("naive f32 Moller-Trumbore missed {naive_misses} of the same rays");
-    assert!(
-        naive_misses > 0,
-        "the rays are too easy to tell a watertight test apart"
-    );
+    assert!(naive_misses > 0, "the rays are too easy to tell a watertight test apart");
 }
 
 /// The offset origin must keep a spawned ray off the surface it leaves, at
@@ -494,11 +460,7 @@ fn degenerate_triangles_never_hit_and_never_nan() {
         degenerate.push([a, Vec3A::splat(f32::INFINITY), b]);
     }
     assert!(degenerate.iter().all(is_degenerate));
-    let valid = [
-        Vec3A::new(-2.0, -2.0, 0.1),
-        Vec3A::new(2.0, -2.0, 0.1),
-        Vec3A::new(0.0, 2.0, 0.1),
-    ];
+    let valid = [Vec3A::new(-2.0, -2.0, 0.1), Vec3A::new(2.0, -2.0, 0.1), Vec3A::new(0.0, 2.0, 0.1)];
     let mut scene = degenerate.clone();
     scene.push(valid);
     for tris in [degenerate.clone(), scene] {

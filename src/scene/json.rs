@@ -53,9 +53,9 @@ struct SceneFile {
     #[allow(dead_code)]
     comment: Option<String>,
     camera: CameraSpec,
-    #[serde(default)]
+    #[serde(default, deserialize_with = "unique_names")]
     spectra: BTreeMap<String, SpectrumSpec>,
-    #[serde(default)]
+    #[serde(default, deserialize_with = "unique_names")]
     materials: BTreeMap<String, MaterialSpec>,
     #[serde(default)]
     objects: Vec<ObjectSpec>,
@@ -63,6 +63,34 @@ struct SceneFile {
     lights: Vec<LightSpec>,
     #[serde(default)]
     render: RenderSpec,
+}
+
+/// A map of named entries in which a repeated name is an error (a plain
+/// map would silently keep the last one).
+fn unique_names<'de, D, V>(d: D) -> Result<BTreeMap<String, V>, D::Error>
+where
+    D: serde::Deserializer<'de>,
+    V: Deserialize<'de>,
+{
+    struct Names<V>(std::marker::PhantomData<V>);
+    impl<'de, V: Deserialize<'de>> serde::de::Visitor<'de> for Names<V> {
+        type Value = BTreeMap<String, V>;
+        fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+            f.write_str("an object of named entries")
+        }
+        fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> Result<Self::Value, A::Error> {
+            let mut out = BTreeMap::new();
+            while let Some(name) = map.next_key::<String>()? {
+                if out.contains_key(&name) {
+                    return Err(serde::de::Error::custom(format!("duplicate name \"{name}\"")));
+                }
+                let value = map.next_value()?;
+                out.insert(name, value);
+            }
+            Ok(out)
+        }
+    }
+    d.deserialize_map(Names(std::marker::PhantomData))
 }
 
 #[derive(Deserialize)]
@@ -161,7 +189,9 @@ struct ObjectSpec {
     #[allow(dead_code)]
     comment: Option<String>,
     shape: ShapeSpec,
-    material: String,
+    /// Required, except for a `gltf` shape (whose materials map themselves).
+    #[serde(default)]
+    material: Option<String>,
     #[serde(default)]
     emission: Option<SpectrumSpec>,
     #[serde(default)]
@@ -178,6 +208,18 @@ enum ShapeSpec {
     Sphere(SphereSpec),
     Mesh(InlineMeshSpec),
     Obj(ObjSpec),
+    Gltf(GltfSpec),
+}
+
+/// A glTF file as one object (docs/scene-format.md, "glTF scenes").
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GltfSpec {
+    /// Relative to the scene file.
+    file: String,
+    /// glTF material name (or `#index`) -> a key of the scene's `materials`.
+    #[serde(default)]
+    materials: BTreeMap<String, String>,
 }
 
 #[derive(Deserialize)]
@@ -402,7 +444,7 @@ impl Ctx<'_> {
         if values.iter().all(|v| v.is_finite()) {
             Ok(())
         } else {
-            Err(self.err(path, "numbers must be finite"))
+            Err(self.err(path, "numbers must be finite and within the f32 range (magnitude < 3.4e38)"))
         }
     }
 
@@ -448,6 +490,11 @@ impl Ctx<'_> {
                         Use::Reflectance | Use::Other => &[],
                     };
                     known.extend(builtins.iter().map(|s| s.to_string()));
+                    if known.is_empty() {
+                        // Not "(known: )": say where names come from.
+                        let why = "the scene defines no \"spectra\"; built-in names exist only for emission and ior";
+                        return self.err(path, format!("unknown spectrum \"{name}\" ({why})"));
+                    }
                     self.err(path, format!("unknown spectrum \"{name}\" (known: {})", known.join(", ")))
                 })?
             }
@@ -498,6 +545,14 @@ impl Ctx<'_> {
                 spectrum::cauchy(*a, *b)
             }
         };
+        let finite = match &s {
+            Spectrum::Constant(c) => c.is_finite(),
+            Spectrum::Dense(t) => t.iter().all(|v| v.is_finite()),
+        };
+        if !finite {
+            let why = "the spectrum is not finite at every wavelength (overflow, or a pole of the formula)";
+            return Err(self.err(path, why));
+        }
         if usage == Use::Reflectance && s.max_value() > 1.0 {
             return Err(self.err(path, format!("a reflectance must not exceed 1 (max {})", s.max_value())));
         }
@@ -601,6 +656,7 @@ impl Ctx<'_> {
             }
             ShapeSpec::Mesh(m) => self.inline_mesh(path, m)?,
             ShapeSpec::Obj(o) => self.obj(&at("file"), &o.file)?,
+            ShapeSpec::Gltf(_) => return Err(self.err(path, "a gltf shape cannot be used here")),
         };
         Ok(mesh)
     }
@@ -619,6 +675,11 @@ impl Ctx<'_> {
 
     fn obj(&self, path: &[Seg], file: &str) -> Result<Mesh, LoadError> {
         let full: PathBuf = self.dir.join(file);
+        // Only regular files: a directory fails late, /dev/zero or a FIFO would hang the loader.
+        if !full.is_file() {
+            let why = if full.exists() { "not a regular file" } else { "no such file" };
+            return Err(self.err(path, format!("cannot read mesh {}: {why}", full.display())));
+        }
         let opts = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
         let (models, _) = tobj::load_obj(&full, &opts).map_err(|e| self.err(path, format!("cannot read mesh {}: {e}", full.display())))?;
         let mut mesh = Mesh { positions: Vec::new(), normals: Vec::new(), indices: Vec::new() };
@@ -650,12 +711,13 @@ impl Ctx<'_> {
         let rotation = match &t.rotate {
             None => Quat::IDENTITY,
             Some(r) => {
-                let axis = Vec3::from(self.vec3(&with(path, "rotate"), r.axis)?);
+                // Normalised in f64: in f32 a huge axis overflows to a zero, non-unit quaternion.
+                let axis = Vec3::from(self.vec3(&with(path, "rotate"), r.axis)?).as_dvec3().normalize_or_zero();
                 self.finite(&with(path, "rotate"), &[r.degrees])?;
-                if axis.length_squared() == 0.0 {
+                if axis == glam::DVec3::ZERO {
                     return Err(self.err(&with(path, "rotate"), "rotation axis must not be zero"));
                 }
-                Quat::from_axis_angle(axis.normalize(), r.degrees.to_radians())
+                Quat::from_axis_angle(axis.as_vec3().normalize(), r.degrees.to_radians())
             }
         };
         let translation = Vec3::from(self.vec3(&with(path, "translate"), t.translate.unwrap_or([0.0; 3]))?);
@@ -677,6 +739,12 @@ fn with_index(path: &[Seg], i: usize) -> Vec<Seg> {
 
 /// Reads and builds a scene file; see docs/scene-format.md.
 pub fn load_scene(path: &Path) -> Result<SceneBuilder, LoadError> {
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    if matches!(ext.as_deref(), Some("gltf" | "glb")) {
+        let g = super::gltf::load_gltf(path)?;
+        g.messages.iter().for_each(|m| eprintln!("{m}"));
+        return Ok(g.builder);
+    }
     let file = path.display().to_string();
     let text = std::fs::read_to_string(path).map_err(|e| LoadError {
         file: file.clone(),
@@ -710,6 +778,35 @@ pub fn parse_scene(text: &str, file: &str, dir: &Path) -> Result<SceneBuilder, L
     build(&ctx, &parsed)
 }
 
+/// Adds a `gltf` shape's meshes and lights (src/scene/gltf.rs).
+fn include_gltf(
+    ctx: &Ctx,
+    b: &mut SceneBuilder,
+    path: &[Seg],
+    o: &ObjectSpec,
+    g: &GltfSpec,
+    find: &dyn Fn(&str, &[Seg]) -> Result<u32, LoadError>,
+) -> Result<(), LoadError> {
+    if o.emission.is_some() || o.two_sided {
+        return Err(ctx.err(path, "emission and two_sided do not apply to a gltf shape (its emissive materials emit)"));
+    }
+    let shape = with(path, "shape");
+    let material = o.material.as_deref().map(|m| find(m, &with(path, "material"))).transpose()?;
+    let mut overrides = BTreeMap::new();
+    for (key, name) in &g.materials {
+        overrides.insert(key.clone(), find(name, &with(&with(&shape, "materials"), key))?);
+    }
+    let transform = match &o.transform {
+        Some(t) => ctx.transform(&with(path, "transform"), t)?,
+        None => Affine3A::IDENTITY,
+    };
+    let name = o.name.clone().unwrap_or_else(|| format!("object {}", path_string(path)));
+    super::gltf::include(b, &ctx.dir.join(&g.file), &name, transform, material, &overrides).map_err(|e| match e.key {
+        Some(key) => ctx.err(&with(&with(&shape, "materials"), &key), e.message),
+        None => ctx.err(&with(&shape, "file"), e.message),
+    })
+}
+
 /// serde_json appends " at line L column C"; we print the position up front.
 fn strip_position(msg: &str) -> String {
     match msg.rfind(" at line ") {
@@ -730,11 +827,16 @@ fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
     if c.width == 0 || c.height == 0 {
         return Err(ctx.err(&with(&cam_path, "width"), "width and height must be >= 1"));
     }
-    let forward = look_at - position;
-    if forward.length_squared() == 0.0 || forward.cross(up).length_squared() == 0.0 {
+    // normalize_or_zero is zero on overflow as well as on a zero vector.
+    let forward = (look_at - position).normalize_or_zero();
+    if forward == Vec3A::ZERO || forward.cross(up).normalize_or_zero() == Vec3A::ZERO {
         return Err(ctx.err(&with(&cam_path, "look_at"), "look_at must differ from position and not be parallel to up"));
     }
-    let mut b = SceneBuilder::new(Camera::new(position, look_at, up, c.fov, c.width, c.height));
+    let camera = Camera::new(position, look_at, up, c.fov, c.width, c.height);
+    if !(camera.image_area().is_normal() && camera.image_area().is_finite()) {
+        return Err(ctx.err(&with(&cam_path, "fov"), format!("fov {:e} is too small: the image has no area", c.fov)));
+    }
+    let mut b = SceneBuilder::new(camera);
 
     let mut material_ids = BTreeMap::new();
     for (name, spec) in &f.materials {
@@ -745,13 +847,27 @@ fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
 
     for (i, o) in f.objects.iter().enumerate() {
         let path = with_index(&[Seg::Key("objects".into())], i);
-        let material = *material_ids.get(&o.material).ok_or_else(|| {
-            let known: Vec<&str> = material_ids.keys().map(String::as_str).collect();
-            ctx.err(&with(&path, "material"), format!("unknown material \"{}\" (known: {})", o.material, known.join(", ")))
-        })?;
+        let find = |name: &str, at: &[Seg]| {
+            material_ids.get(name).copied().ok_or_else(|| {
+                let known: Vec<&str> = material_ids.keys().map(String::as_str).collect();
+                ctx.err(at, format!("unknown material \"{name}\" (known: {})", known.join(", ")))
+            })
+        };
+        if let ShapeSpec::Gltf(g) = &o.shape {
+            include_gltf(ctx, &mut b, &path, o, g, &find)?;
+            continue;
+        }
+        let material = match &o.material {
+            Some(m) => find(m, &with(&path, "material"))?,
+            None => return Err(ctx.err(&path, "missing field `material`")),
+        };
         let mut mesh = ctx.shape(&with(&path, "shape"), &o.shape)?;
         if let Some(t) = &o.transform {
             mesh.transform(ctx.transform(&with(&path, "transform"), t)?);
+        }
+        if mesh.positions.iter().any(|p| !p.is_finite()) {
+            let at = if o.transform.is_some() { with(&path, "transform") } else { with(&path, "shape") };
+            return Err(ctx.err(&at, "vertex positions overflow the f32 range"));
         }
         let emission = match &o.emission {
             Some(e) => Some((ctx.spectrum(&with(&path, "emission"), e, Use::Emission)?, o.two_sided)),
@@ -776,6 +892,9 @@ fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
         }
     }
     let r = &f.render;
+    if r.spp == Some(0) {
+        return Err(ctx.err(&[Seg::Key("render".into()), Seg::Key("spp".into())], "spp must be at least 1"));
+    }
     b.defaults = RenderDefaults { spp: r.spp, max_depth: r.max_depth, integrator: r.integrator.clone(), seed: r.seed };
     Ok(b)
 }

@@ -2,9 +2,11 @@
 //! and the queries the integrators make (closest hit as a surface
 //! interaction, visibility, light selection).
 
+mod gltf;
 mod json;
 mod locate;
 
+pub use self::gltf::{gltf_conductor_eta_k, load_gltf, parse_gltf, GltfScene};
 pub use json::{load_scene, parse_scene, LoadError};
 
 use crate::accel::Accel;

@@ -1,0 +1,904 @@
+//! The glTF 2.0 loader: `.gltf` (data-URI or external buffers) and `.glb`,
+//! rendered directly (`prism render model.glb`) or included as one object of
+//! a JSON scene (`{"type": "gltf", "file": ...}`).
+//!
+//! The mapping to the spectral BSDF library is documented in
+//! docs/scene-format.md, section "glTF scenes"; in short:
+//!
+//! | glTF                                        | prism                                                     |
+//! |---------------------------------------------|-----------------------------------------------------------|
+//! | metallic >= 0.5                             | `Conductor`, eta and k fitted to the base colour (Gulbrandsen 2014) |
+//! | metallic < 0.5, transmission >= 0.5         | `Dielectric`, ior from KHR_materials_ior (default 1.5)    |
+//! | metallic < 0.5 otherwise                    | `Diffuse`, reflectance = base colour                      |
+//! | roughness                                   | GGX alpha = roughness^2                                   |
+//! | base colour (factor x texture mean)         | Jakob-Hanika reflectance spectrum (`rgb_albedo`)          |
+//! | emissive (factor x strength x texture mean) | area light with `rgb_illuminant` radiance (D65-based)     |
+//! | KHR_lights_punctual point (spot)            | point light, intensity = rgb_illuminant(colour) x candela |
+//! | first perspective camera                    | pinhole camera (yfov, aspect ratio)                       |
+//!
+//! Textures are averaged (colours sRGB-decoded per texel first): the BSDFs
+//! have no texture lookup, so a textured material renders with its mean and
+//! the loader says so. Nothing is dropped silently: what prism cannot
+//! represent is an error naming the node or material (points and lines,
+//! directional lights, unsupported required extensions) or a warning.
+//!
+//! A material's `extras` may carry measured spectra that RGB cannot:
+//! `"extras": {"prism": {"reflectance": S, "emission": S}}` with
+//! S = `{"wavelengths": [...], "values": [...]}` (nm; piecewise linear with
+//! the end values held, as in the JSON format). `reflectance` replaces the
+//! base colour's spectrum, `emission` the emitted radiance (absolute: not
+//! scaled by emissiveFactor or strength). scenes/gltf/cornell-box.gltf uses
+//! them; any other glTF reader ignores them and sees the RGB values.
+
+use super::{LoadError, SceneBuilder};
+use crate::camera::Camera;
+use crate::materials::{roughness_to_alpha, Bsdf, Conductor, Dielectric, Diffuse};
+use crate::shapes::Mesh;
+use crate::spectrum::{self, Spectrum};
+use glam::{Affine3A, Mat4, Vec3A};
+use gltf::mesh::Mode;
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Path, PathBuf};
+
+/// Extensions whose data the loader reads; others are ignored with a
+/// warning, or refused when the file requires them.
+pub const SUPPORTED_EXTENSIONS: &[&str] = &[
+    "KHR_lights_punctual",
+    "KHR_materials_emissive_strength",
+    "KHR_materials_ior",
+    "KHR_materials_transmission",
+];
+
+/// Image height for a glTF camera (glTF has no resolution; `prism render
+/// --width/--height` override it); the width follows the aspect ratio, else
+/// 4:3.
+const DEFAULT_HEIGHT: u32 = 480;
+const DEFAULT_ASPECT: f32 = 4.0 / 3.0;
+/// Default framing when the file has no perspective camera: looking at the
+/// centre of the bounding box from the +z side (glTF's front), 30 degrees
+/// above the horizontal, up +y, so that the bounding sphere fits the image
+/// height.
+const DEFAULT_FOV_DEG: f32 = 40.0;
+const DEFAULT_ELEVATION_DEG: f32 = 30.0;
+/// Luminance of the constant D65 environment that lights a file with
+/// neither punctual lights nor emissive materials.
+const DEFAULT_ENVIRONMENT: f32 = 1.0;
+
+/// A glTF file turned into a scene, with the warnings and notes the loader
+/// made (each a full line, `warning: ...` or `note: ...`, for stderr).
+pub struct GltfScene {
+    pub builder: SceneBuilder,
+    pub messages: Vec<String>,
+}
+
+/// Reads a `.gltf` or `.glb` file; external buffers and images are resolved
+/// relative to its directory.
+pub fn load_gltf(path: &Path) -> Result<GltfScene, LoadError> {
+    let file = path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|e| LoadError {
+        file: file.clone(),
+        position: None,
+        field: String::new(),
+        message: format!("cannot read glTF file: {e}"),
+    })?;
+    parse_gltf(&bytes, &file, path.parent().unwrap_or(Path::new(".")))
+}
+
+/// Builds a scene from the bytes of a `.gltf` or `.glb` file; `file` names it
+/// in messages and `dir` resolves external buffers and images.
+pub fn parse_gltf(bytes: &[u8], file: &str, dir: &Path) -> Result<GltfScene, LoadError> {
+    let mut imp = Importer::open(bytes, file, dir)?;
+    let content = imp.import(Affine3A::IDENTITY)?;
+    let camera = match &content.camera {
+        Some(c) => c.clone(),
+        None => {
+            imp.note("", "no perspective camera: default framing of the bounding box from +z, 30 degrees up");
+            default_camera(&content.meshes)
+        }
+    };
+    let mut b = SceneBuilder::new(camera);
+    let ids = imp.add_materials(&mut b, &content, None, &BTreeMap::new());
+    let mut emissive = false;
+    for m in &content.meshes {
+        let emission = imp.materials[m.material].emission.clone();
+        emissive |= emission.is_some();
+        b.mesh(&m.name, m.mesh.clone(), ids[m.material], emission);
+    }
+    for (name, p, intensity) in &content.lights {
+        b.point_light(name, *p, intensity.clone());
+    }
+    if content.lights.is_empty() && !emissive {
+        imp.note(
+            "",
+            format!(
+                "no punctual lights and no emissive materials: lit by a constant white (D65) environment of \
+                 luminance {DEFAULT_ENVIRONMENT} (include the file in a JSON scene to choose other lights)"
+            ),
+        );
+        let d65 = spectrum::illuminant("D65").expect("D65 is tabulated");
+        b.environment("default environment", d65.scale(DEFAULT_ENVIRONMENT));
+    }
+    Ok(GltfScene { builder: b, messages: imp.messages })
+}
+
+/// Why including a glTF file in a JSON scene failed: `key` names the entry
+/// of the object's `materials` map at fault, if any.
+pub(super) struct IncludeError {
+    pub key: Option<String>,
+    pub message: String,
+}
+
+/// Adds the meshes, emissive materials and punctual lights of `path` to a
+/// JSON scene under `transform` (the glTF's cameras are not used, nor is a
+/// default environment added). `overrides` maps glTF material names (`#i`
+/// for an unnamed material i) to prism material ids; `material`, if given,
+/// replaces every glTF material not in `overrides`. An emissive glTF
+/// material keeps emitting when its BSDF is overridden. Warnings go to
+/// stderr.
+pub(super) fn include(
+    b: &mut SceneBuilder,
+    path: &Path,
+    object: &str,
+    transform: Affine3A,
+    material: Option<u32>,
+    overrides: &BTreeMap<String, u32>,
+) -> Result<(), IncludeError> {
+    let err = |e: LoadError| IncludeError { key: None, message: e.to_string() };
+    let file = path.display().to_string();
+    let bytes = std::fs::read(path)
+        .map_err(|e| IncludeError { key: None, message: format!("cannot read glTF file {file}: {e}") })?;
+    let mut imp = Importer::open(&bytes, &file, path.parent().unwrap_or(Path::new("."))).map_err(err)?;
+    let known: Vec<String> = imp.doc.materials().map(|m| material_key(&m)).collect();
+    if let Some(key) = overrides.keys().find(|k| !known.contains(k)) {
+        return Err(IncludeError {
+            key: Some(key.clone()),
+            message: format!("{file} has no material \"{key}\" (known: {})", known.join(", ")),
+        });
+    }
+    let content = imp.import(transform).map_err(err)?;
+    let ids = imp.add_materials(b, &content, material, overrides);
+    for m in &content.meshes {
+        let emission = imp.materials[m.material].emission.clone();
+        b.mesh(&format!("{object}: {}", m.name), m.mesh.clone(), ids[m.material], emission);
+    }
+    for (name, p, intensity) in &content.lights {
+        b.point_light(&format!("{object}: {name}"), *p, intensity.clone());
+    }
+    for m in &imp.messages {
+        eprintln!("{m}");
+    }
+    Ok(())
+}
+
+/// What a glTF scene graph contributes, in world space.
+struct Content {
+    meshes: Vec<ImportedMesh>,
+    /// (name, position, intensity) of each point light.
+    lights: Vec<(String, Vec3A, Spectrum)>,
+    camera: Option<Camera>,
+}
+
+struct ImportedMesh {
+    name: String,
+    mesh: Mesh,
+    /// Index into `Importer::materials`.
+    material: usize,
+}
+
+/// A glTF material as prism sees it.
+struct MappedMaterial {
+    /// glTF material index; None for glTF's default material.
+    index: Option<usize>,
+    /// `materials[i] "name"` or `default material`, for messages.
+    label: String,
+    /// The name the JSON `materials` override map uses.
+    key: String,
+    emission: Option<(Spectrum, bool)>,
+}
+
+struct Importer {
+    file: String,
+    doc: gltf::Document,
+    buffers: Vec<Vec<u8>>,
+    dir: PathBuf,
+    /// The materials primitives use, in order of first use.
+    materials: Vec<MappedMaterial>,
+    material_slots: HashMap<Option<usize>, usize>,
+    /// Texel means of each image (None: it could not be decoded).
+    image_means: HashMap<usize, Option<ImageMeans>>,
+    messages: Vec<String>,
+}
+
+impl Importer {
+    fn open(bytes: &[u8], file: &str, dir: &Path) -> Result<Self, LoadError> {
+        let fail = |field: &str, message: String| LoadError {
+            file: file.to_string(),
+            position: None,
+            field: field.to_string(),
+            message,
+        };
+        let gltf::Gltf { document, blob } =
+            gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| fail("", format!("not a valid glTF: {e}")))?;
+        let json = document.into_json();
+        for (i, ext) in json.extensions_required.iter().enumerate() {
+            if !SUPPORTED_EXTENSIONS.contains(&ext.as_str()) {
+                return Err(fail(
+                    &format!("extensionsRequired[{i}]"),
+                    format!(
+                        "the file requires extension {ext}, which prism does not support (supported: {})",
+                        SUPPORTED_EXTENSIONS.join(", ")
+                    ),
+                ));
+            }
+        }
+        let doc = gltf::Document::from_json(json).map_err(|e| fail("", format!("invalid glTF: {e}")))?;
+        let mut imp = Importer {
+            file: file.to_string(),
+            doc,
+            buffers: Vec::new(),
+            dir: dir.to_path_buf(),
+            materials: Vec::new(),
+            material_slots: HashMap::new(),
+            image_means: HashMap::new(),
+            messages: Vec::new(),
+        };
+        let used: Vec<String> = imp.doc.extensions_used().map(str::to_string).collect();
+        for ext in used {
+            if !SUPPORTED_EXTENSIONS.contains(&ext.as_str()) {
+                imp.warn("", format!("extension {ext} is ignored (rendered as if it were absent)"));
+            }
+        }
+        let mut blob = blob;
+        let mut buffers = Vec::new();
+        for buffer in imp.doc.buffers() {
+            let what = format!("buffers[{}]", buffer.index());
+            let mut data = match buffer.source() {
+                gltf::buffer::Source::Bin => blob.take().ok_or_else(|| fail(&what, "the GLB has no binary chunk".into()))?,
+                gltf::buffer::Source::Uri(uri) => imp.read_uri(uri).map_err(|m| fail(&what, m))?,
+            };
+            if data.len() < buffer.length() {
+                return Err(fail(&what, format!("holds {} bytes, byteLength says {}", data.len(), buffer.length())));
+            }
+            data.truncate(buffer.length());
+            buffers.push(data);
+        }
+        imp.buffers = buffers;
+        for view in imp.doc.views() {
+            if view.offset().checked_add(view.length()).is_none_or(|end| end > view.buffer().length()) {
+                return Err(fail(&format!("bufferViews[{}]", view.index()), "lies outside its buffer".into()));
+            }
+        }
+        Ok(imp)
+    }
+
+    /// Bytes of a data URI or of a file relative to the glTF file.
+    fn read_uri(&self, uri: &str) -> Result<Vec<u8>, String> {
+        if let Some(rest) = uri.strip_prefix("data:") {
+            let (_, data) = rest.split_once(";base64,").ok_or("only base64 data URIs are supported")?;
+            return base64_decode(data).ok_or_else(|| "malformed base64 in data URI".to_string());
+        }
+        if uri.contains(':') {
+            return Err(format!("unsupported URI \"{uri}\" (prism reads data: URIs and relative paths)"));
+        }
+        let path = self.dir.join(percent_decode(uri));
+        std::fs::read(&path).map_err(|e| format!("cannot read {}: {e}", path.display()))
+    }
+
+    fn message(&mut self, kind: &str, what: &str, msg: impl Into<String>) {
+        let what = if what.is_empty() { String::new() } else { format!("{what}: ") };
+        self.messages.push(format!("{kind}: {}: {what}{}", self.file, msg.into()));
+    }
+
+    fn warn(&mut self, what: &str, msg: impl Into<String>) {
+        self.message("warning", what, msg);
+    }
+
+    fn note(&mut self, what: &str, msg: impl Into<String>) {
+        self.message("note", what, msg);
+    }
+
+    fn fail(&self, what: &str, message: impl Into<String>) -> LoadError {
+        LoadError { file: self.file.clone(), position: None, field: what.to_string(), message: message.into() }
+    }
+
+    /// Walks the default scene (else the first) under `root`, depth first in
+    /// node order.
+    fn import(&mut self, root: Affine3A) -> Result<Content, LoadError> {
+        let scene_count = self.doc.scenes().count();
+        let scene = self.doc.default_scene().or_else(|| self.doc.scenes().next()).map(|s| s.index());
+        let Some(scene) = scene else {
+            return Err(self.fail("scenes", "the file has no scene to render"));
+        };
+        if scene_count > 1 {
+            self.note("scenes", format!("renders scene {scene} of {scene_count}"));
+        }
+        let roots: Vec<usize> = self.doc.scenes().nth(scene).expect("scene index").nodes().map(|n| n.index()).collect();
+        let mut content = Content { meshes: Vec::new(), lights: Vec::new(), camera: None };
+        let mut cameras = 0;
+        let mut stack: Vec<(usize, Affine3A, u32)> = roots.into_iter().rev().map(|n| (n, root, 0)).collect();
+        while let Some((index, parent, depth)) = stack.pop() {
+            let doc = self.doc.clone();
+            let node = doc.nodes().nth(index).expect("validated node index");
+            let label = label("nodes", index, node.name());
+            if depth > 256 {
+                return Err(self.fail(&label, "the node hierarchy is deeper than 256 levels (a cycle?)"));
+            }
+            let local = Affine3A::from_mat4(Mat4::from_cols_array_2d(&node.transform().matrix()));
+            let world = parent * local;
+            if !world.is_finite() {
+                return Err(self.fail(&label, "the node transform is not finite"));
+            }
+            if let Some(mesh) = node.mesh() {
+                self.import_mesh(&node, &mesh, world, &label, &mut content)?;
+            }
+            if node.skin().is_some() {
+                self.warn(&label, "skinning is ignored: the mesh renders in its bind pose");
+            }
+            if let Some(camera) = node.camera() {
+                cameras += 1;
+                match camera.projection() {
+                    gltf::camera::Projection::Perspective(p) if content.camera.is_none() => {
+                        content.camera = Some(self.camera(&label, world, p.yfov(), p.aspect_ratio())?);
+                        self.note(&label, "renders through this node's camera");
+                    }
+                    gltf::camera::Projection::Perspective(_) => {}
+                    gltf::camera::Projection::Orthographic(_) => {
+                        self.warn(&label, "orthographic camera ignored (prism has a pinhole camera only)");
+                    }
+                }
+            }
+            if let Some(light) = node.light() {
+                self.import_light(&light, world, &label, &mut content)?;
+            }
+            for child in node.children().collect::<Vec<_>>().into_iter().rev() {
+                stack.push((child.index(), world, depth + 1));
+            }
+        }
+        if cameras > 1 && content.camera.is_some() {
+            self.note("cameras", format!("{} other camera node(s) not used", cameras - 1));
+        }
+        Ok(content)
+    }
+
+    fn camera(&self, label: &str, world: Affine3A, yfov: f32, aspect: Option<f32>) -> Result<Camera, LoadError> {
+        let position = Vec3A::from(world.translation);
+        let forward = world.transform_vector3a(-Vec3A::Z).normalize_or_zero();
+        let up = world.transform_vector3a(Vec3A::Y).normalize_or_zero();
+        if forward == Vec3A::ZERO || forward.cross(up).normalize_or_zero() == Vec3A::ZERO {
+            return Err(self.fail(label, "the camera's transform is degenerate (no view or up direction)"));
+        }
+        let fov = yfov.to_degrees();
+        if !(fov.is_finite() && fov > 0.0 && fov < 180.0) {
+            return Err(self.fail(label, format!("yfov {yfov} rad is not between 0 and pi")));
+        }
+        let aspect = aspect.filter(|a| a.is_finite() && *a > 0.0).unwrap_or(DEFAULT_ASPECT);
+        let width = ((DEFAULT_HEIGHT as f32 * aspect).round() as u32).clamp(1, 16384);
+        Ok(Camera::new(position, position + forward, up, fov, width, DEFAULT_HEIGHT))
+    }
+
+    fn import_light(
+        &mut self,
+        light: &gltf::khr_lights_punctual::Light,
+        world: Affine3A,
+        label: &str,
+        content: &mut Content,
+    ) -> Result<(), LoadError> {
+        use gltf::khr_lights_punctual::Kind;
+        let name = light.name().map_or_else(|| label.to_string(), str::to_string);
+        match light.kind() {
+            Kind::Point => {}
+            Kind::Spot { .. } => {
+                self.warn(label, format!("spot light \"{name}\" rendered as a point light (its cone is ignored)"));
+            }
+            Kind::Directional => {
+                return Err(self.fail(
+                    label,
+                    format!(
+                        "directional light \"{name}\" is not supported: prism has no directional light (remove \
+                         it, or include the file in a JSON scene with an environment light)"
+                    ),
+                ));
+            }
+        }
+        if light.range().is_some() {
+            self.warn(label, format!("light \"{name}\": range is ignored (point lights fall off as 1/r^2)"));
+        }
+        let color = light.color();
+        let intensity = light.intensity();
+        if !(color.iter().all(|c| c.is_finite() && *c >= 0.0) && intensity.is_finite() && intensity >= 0.0) {
+            return Err(self.fail(label, format!("light \"{name}\": colour and intensity must be finite and >= 0")));
+        }
+        // KHR_lights_punctual: the intensity (candela) is that of the light
+        // coloured white; the colour multiplies it per channel, so a pure
+        // red light has the luminance of the red primary times intensity.
+        let spectrum = spectrum::rgb_illuminant(color).scale(intensity);
+        content.lights.push((name, Vec3A::from(world.translation), spectrum));
+        Ok(())
+    }
+
+    fn import_mesh(
+        &mut self,
+        node: &gltf::Node,
+        mesh: &gltf::Mesh,
+        world: Affine3A,
+        node_label: &str,
+        content: &mut Content,
+    ) -> Result<(), LoadError> {
+        let what = format!("{node_label} ({})", label("meshes", mesh.index(), mesh.name()));
+        if node.weights().is_some() || mesh.weights().is_some() {
+            self.warn(&what, "morph target weights are ignored: the base shape is rendered");
+        }
+        for prim in mesh.primitives() {
+            let pwhat = format!("{what}, primitive {}", prim.index());
+            let mode = prim.mode();
+            if !matches!(mode, Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
+                return Err(self.fail(
+                    &pwhat,
+                    format!(
+                        "mode {mode:?} is not supported: prism renders surfaces only (Triangles, TriangleStrip, \
+                         TriangleFan)"
+                    ),
+                ));
+            }
+            if prim.attributes().any(|(s, _)| s == gltf::Semantic::Colors(0)) {
+                self.warn(&pwhat, "vertex colours (COLOR_0) are ignored");
+            }
+            let (positions, normals, list) = {
+                let buffers = &self.buffers;
+                let reader = prim.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
+                let positions: Option<Vec<Vec3A>> = reader.read_positions().map(|p| p.map(Vec3A::from_array).collect());
+                let normals: Vec<Vec3A> = reader.read_normals().map_or_else(Vec::new, |n| n.map(Vec3A::from_array).collect());
+                let list: Option<Vec<u32>> = reader.read_indices().map(|i| i.into_u32().collect());
+                (positions, normals, list)
+            };
+            let Some(positions) = positions else {
+                return Err(self.fail(&pwhat, "has no POSITION data"));
+            };
+            if Some(positions.len()) != prim.get(&gltf::Semantic::Positions).map(|a| a.count()) {
+                return Err(self.fail(&pwhat, "the POSITION accessor reaches outside its buffer view"));
+            }
+            let normals = if normals.len() == positions.len() {
+                normals
+            } else {
+                if !normals.is_empty() {
+                    self.warn(&pwhat, "NORMAL count differs from POSITION count: flat shading");
+                }
+                Vec::new()
+            };
+            let list = match list {
+                Some(list) if Some(list.len()) != prim.indices().map(|a| a.count()) => {
+                    return Err(self.fail(&pwhat, "the index accessor reaches outside its buffer view"));
+                }
+                Some(list) => list,
+                None => (0..positions.len() as u32).collect(),
+            };
+            if let Some(i) = list.iter().find(|&&i| i as usize >= positions.len()) {
+                return Err(self.fail(&pwhat, format!("index {i} is out of range ({} positions)", positions.len())));
+            }
+            let mut m = Mesh { positions, normals, indices: triangulate(mode, &list) };
+            m.transform(world);
+            if m.positions.iter().any(|p| !p.is_finite()) {
+                return Err(self.fail(&pwhat, "vertex positions are not finite"));
+            }
+            let material = self.material_slot(&prim.material())?;
+            content.meshes.push(ImportedMesh { name: pwhat, mesh: m, material });
+        }
+        Ok(())
+    }
+
+    /// The slot of a glTF material, created (with its emission) on first use.
+    fn material_slot(&mut self, m: &gltf::Material) -> Result<usize, LoadError> {
+        if let Some(&slot) = self.material_slots.get(&m.index()) {
+            return Ok(slot);
+        }
+        let label = m.index().map_or_else(|| "default material".to_string(), |i| label("materials", i, m.name()));
+        let extras = self.prism_extras(m, &label)?;
+        let emission = self.emission(m, &label, extras.emission)?;
+        self.materials.push(MappedMaterial { index: m.index(), label, key: material_key(m), emission });
+        let slot = self.materials.len() - 1;
+        self.material_slots.insert(m.index(), slot);
+        Ok(slot)
+    }
+
+    /// Adds the BSDFs of the used materials to `b` (unless overridden);
+    /// returns the material id of each slot.
+    fn add_materials(
+        &mut self,
+        b: &mut SceneBuilder,
+        content: &Content,
+        material: Option<u32>,
+        overrides: &BTreeMap<String, u32>,
+    ) -> Vec<u32> {
+        let mut ids = vec![0; self.materials.len()];
+        for slot in 0..self.materials.len() {
+            if !content.meshes.iter().any(|m| m.material == slot) {
+                continue;
+            }
+            if let Some(&id) = overrides.get(&self.materials[slot].key).or(material.as_ref()) {
+                ids[slot] = id;
+                continue;
+            }
+            let doc = self.doc.clone();
+            let gm = match self.materials[slot].index {
+                Some(i) => doc.materials().nth(i).expect("validated material index"),
+                None => default_material(&doc),
+            };
+            let bsdf = self.bsdf(&gm, &self.materials[slot].label.clone());
+            ids[slot] = b.material(&self.materials[slot].key, bsdf);
+        }
+        ids
+    }
+
+    /// The BSDF of a glTF material (rules in the module header).
+    fn bsdf(&mut self, m: &gltf::Material, label: &str) -> Bsdf {
+        let pbr = m.pbr_metallic_roughness();
+        let mut base = pbr.base_color_factor();
+        if let Some(info) = pbr.base_color_texture() {
+            if let Some(mean) = self.texture_mean(&info.texture(), true, label, "baseColorTexture") {
+                for c in 0..4 {
+                    base[c] *= mean[c];
+                }
+            }
+        }
+        let (mut metallic, mut roughness) = (pbr.metallic_factor(), pbr.roughness_factor());
+        if let Some(info) = pbr.metallic_roughness_texture() {
+            if let Some(mean) = self.texture_mean(&info.texture(), false, label, "metallicRoughnessTexture") {
+                roughness *= mean[1];
+                metallic *= mean[2];
+            }
+        }
+        let (metallic, roughness) = (metallic.clamp(0.0, 1.0), roughness.clamp(0.0, 1.0));
+        if m.alpha_mode() != gltf::material::AlphaMode::Opaque {
+            self.warn(label, format!("alphaMode {:?} is ignored: rendered opaque", m.alpha_mode()));
+        }
+        if m.normal_texture().is_some() {
+            self.warn(label, "normalTexture is ignored (the BSDFs have no texture lookup)");
+        }
+        let extras = self.prism_extras(m, label).unwrap_or_default();
+        let rgb = [base[0], base[1], base[2]].map(|c| c.clamp(0.0, 1.0));
+        let reflectance = extras.reflectance.unwrap_or_else(|| spectrum::rgb_albedo(rgb));
+        let alpha = roughness_to_alpha(roughness);
+        if metallic > 0.0 && metallic < 1.0 {
+            let choice = if metallic >= 0.5 { "a conductor" } else { "a non-metal" };
+            self.warn(label, format!("metallic {metallic} is neither 0 nor 1: rendered as {choice} (threshold 0.5)"));
+        }
+        if metallic >= 0.5 {
+            return conductor_from_f0(&reflectance, alpha);
+        }
+        let mut transmission = 0.0;
+        if let Some(t) = m.transmission() {
+            if t.transmission_texture().is_some() {
+                self.warn(label, "transmissionTexture is ignored (the factor alone decides)");
+            }
+            transmission = t.transmission_factor();
+        }
+        if transmission > 0.0 && transmission < 1.0 {
+            let choice = if transmission >= 0.5 { "a dielectric" } else { "diffuse" };
+            self.warn(label, format!("transmission {transmission} is neither 0 nor 1: rendered {choice} (threshold 0.5)"));
+        }
+        if transmission >= 0.5 {
+            let mut ior = m.ior().unwrap_or(1.5);
+            if !(ior.is_finite() && ior >= 1.0) {
+                self.warn(label, format!("ior {ior} is not >= 1: 1.5 used"));
+                ior = 1.5;
+            }
+            if rgb != [1.0; 3] {
+                self.warn(label, "the base colour does not tint transmission in prism (a clear dielectric)");
+            }
+            return Bsdf::Dielectric(Dielectric::new(Spectrum::Constant(ior), alpha, alpha));
+        }
+        Bsdf::Diffuse(Diffuse::new(reflectance))
+    }
+
+    /// Emitted radiance: the prism extras' spectrum, else emissiveFactor x
+    /// emissiveStrength x the emissive texture's mean as an RGB illuminant;
+    /// two-sided when the material is double-sided.
+    fn emission(
+        &mut self,
+        m: &gltf::Material,
+        label: &str,
+        measured: Option<Spectrum>,
+    ) -> Result<Option<(Spectrum, bool)>, LoadError> {
+        if let Some(s) = measured {
+            return Ok((s.max_value() > 0.0).then_some((s, m.double_sided())));
+        }
+        let strength = m.emissive_strength().unwrap_or(1.0);
+        let mut rgb = m.emissive_factor().map(|c| c * strength);
+        if rgb.iter().any(|c| !c.is_finite() || *c < 0.0) {
+            return Err(self.fail(label, "emissiveFactor x emissiveStrength must be finite and >= 0"));
+        }
+        if rgb == [0.0; 3] {
+            return Ok(None);
+        }
+        if let Some(info) = m.emissive_texture() {
+            if let Some(mean) = self.texture_mean(&info.texture(), true, label, "emissiveTexture") {
+                for c in 0..3 {
+                    rgb[c] *= mean[c];
+                }
+            }
+        }
+        Ok((rgb != [0.0; 3]).then(|| (spectrum::rgb_illuminant(rgb), m.double_sided())))
+    }
+
+    /// The material's `extras.prism` spectra, if any.
+    fn prism_extras(&self, m: &gltf::Material, label: &str) -> Result<PrismExtras, LoadError> {
+        let Some(raw) = m.extras() else { return Ok(PrismExtras::default()) };
+        let at = format!("{label}: extras.prism");
+        let value: serde_json::Value =
+            serde_json::from_str(raw.get()).map_err(|e| self.fail(&at, format!("not JSON: {e}")))?;
+        let Some(prism) = value.get("prism") else { return Ok(PrismExtras::default()) };
+        let obj = prism.as_object().ok_or_else(|| self.fail(&at, "must be an object"))?;
+        if let Some(k) = obj.keys().find(|k| *k != "reflectance" && *k != "emission") {
+            return Err(self.fail(&at, format!("unknown field \"{k}\" (expected reflectance, emission)")));
+        }
+        let spectrum = |key: &str, max: Option<f32>| -> Result<Option<Spectrum>, LoadError> {
+            obj.get(key).map(|v| tabulated(v, max).map_err(|msg| self.fail(&format!("{at}.{key}"), msg))).transpose()
+        };
+        Ok(PrismExtras { reflectance: spectrum("reflectance", Some(1.0))?, emission: spectrum("emission", None)? })
+    }
+
+    /// Mean of a texture's image (RGBA in [0, 1]; colour channels
+    /// sRGB-decoded per texel when `srgb`), with a warning that the mean
+    /// stands for the texture; None, with a warning, if the image cannot be
+    /// decoded.
+    fn texture_mean(&mut self, tex: &gltf::Texture, srgb: bool, label: &str, slot: &str) -> Option<[f32; 4]> {
+        let image = tex.source();
+        let index = image.index();
+        if !self.image_means.contains_key(&index) {
+            let means = match self.decode(&image) {
+                Ok(m) => Some(m),
+                Err(msg) => {
+                    self.warn(label, format!("{slot}: {msg}; the factor alone is used"));
+                    None
+                }
+            };
+            self.image_means.insert(index, means);
+        }
+        let m = self.image_means[&index]?;
+        let rgb = if srgb { m.srgb } else { m.linear };
+        let shown = rgb.map(|v| (v * 1000.0).round() / 1000.0);
+        self.warn(label, format!("{slot} is replaced by its mean {shown:?} (the BSDFs have no texture lookup)"));
+        Some([rgb[0], rgb[1], rgb[2], m.alpha])
+    }
+
+    /// Decodes a PNG image (prism's image crate is built without JPEG).
+    fn decode(&self, image: &gltf::image::Image) -> Result<ImageMeans, String> {
+        let bytes = match image.source() {
+            gltf::image::Source::View { view, .. } => {
+                let data = &self.buffers[view.buffer().index()];
+                data[view.offset()..view.offset() + view.length()].to_vec()
+            }
+            gltf::image::Source::Uri { uri, .. } => self.read_uri(uri)?,
+        };
+        if !bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
+            let kind = if bytes.starts_with(&[0xFF, 0xD8]) { "a JPEG" } else { "not a PNG" };
+            return Err(format!("image {} is {kind}: prism decodes PNG only", image.index()));
+        }
+        let img = image::load_from_memory_with_format(&bytes, image::ImageFormat::Png)
+            .map_err(|e| format!("image {}: {e}", image.index()))?
+            .to_rgba8();
+        Ok(ImageMeans::of(img.as_raw()))
+    }
+}
+
+/// Texel means of an image, in [0, 1]: colour channels as stored
+/// (`linear`) and sRGB-decoded per texel (`srgb`), and alpha.
+#[derive(Clone, Copy)]
+struct ImageMeans {
+    srgb: [f32; 3],
+    linear: [f32; 3],
+    alpha: f32,
+}
+
+impl ImageMeans {
+    fn of(rgba: &[u8]) -> Self {
+        let decode: Vec<f64> = (0..256).map(|v| srgb_to_linear(v as f64 / 255.0)).collect();
+        let n = (rgba.len() / 4).max(1) as f64;
+        let (mut srgb, mut linear, mut alpha) = ([0f64; 3], [0f64; 3], 0f64);
+        for t in rgba.chunks_exact(4) {
+            for c in 0..3 {
+                srgb[c] += decode[t[c] as usize];
+                linear[c] += t[c] as f64 / 255.0;
+            }
+            alpha += t[3] as f64 / 255.0;
+        }
+        Self { srgb: srgb.map(|v| (v / n) as f32), linear: linear.map(|v| (v / n) as f32), alpha: (alpha / n) as f32 }
+    }
+}
+
+/// The sRGB transfer function, decoded (IEC 61966-2-1).
+fn srgb_to_linear(v: f64) -> f64 {
+    if v <= 0.04045 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// Spectra a material's `extras.prism` may give.
+#[derive(Default)]
+struct PrismExtras {
+    reflectance: Option<Spectrum>,
+    emission: Option<Spectrum>,
+}
+
+/// A `{"wavelengths": [...], "values": [...]}` spectrum with values in
+/// [0, `max`].
+fn tabulated(v: &serde_json::Value, max: Option<f32>) -> Result<Spectrum, String> {
+    let obj = v.as_object().ok_or("expected {\"wavelengths\": [...], \"values\": [...]}")?;
+    if let Some(k) = obj.keys().find(|k| *k != "wavelengths" && *k != "values") {
+        return Err(format!("unknown field \"{k}\" (expected wavelengths, values)"));
+    }
+    let arr = |k: &str| -> Result<Vec<f32>, String> {
+        obj.get(k)
+            .and_then(|a| a.as_array())
+            .and_then(|a| a.iter().map(|x| x.as_f64().map(|x| x as f32)).collect::<Option<Vec<f32>>>())
+            .ok_or_else(|| format!("\"{k}\" must be an array of numbers"))
+    };
+    let (w, vals) = (arr("wavelengths")?, arr("values")?);
+    if w.is_empty() || w.len() != vals.len() {
+        return Err("\"wavelengths\" and \"values\" must be non-empty and of equal length".into());
+    }
+    if w.iter().chain(&vals).any(|x| !x.is_finite()) || w.windows(2).any(|p| p[1] <= p[0]) {
+        return Err("numbers must be finite and the wavelengths strictly increasing".into());
+    }
+    if vals.iter().any(|&x| x < 0.0 || max.is_some_and(|m| x > m)) {
+        return Err(format!("values must lie in [0, {}]", max.map_or("inf".to_string(), |m| m.to_string())));
+    }
+    let pts: Vec<(f32, f32)> = w.into_iter().zip(vals).collect();
+    Ok(Spectrum::piecewise_linear(&pts))
+}
+
+/// glTF's default material (spec 3.9.6: white, metallic 1, roughness 1), as
+/// the crate gives it to a primitive without a material.
+fn default_material(doc: &gltf::Document) -> gltf::Material<'_> {
+    doc.meshes()
+        .flat_map(|m| m.primitives().map(|p| p.material()).collect::<Vec<_>>())
+        .find(|m| m.index().is_none())
+        .expect("the default material is only mapped for a primitive without a material")
+}
+
+/// The name a JSON `materials` override map uses for a glTF material: its
+/// name, else `#index`.
+fn material_key(m: &gltf::Material) -> String {
+    match (m.name(), m.index()) {
+        (Some(n), _) if !n.is_empty() => n.to_string(),
+        (_, Some(i)) => format!("#{i}"),
+        (_, None) => "default".to_string(),
+    }
+}
+
+fn label(kind: &str, index: usize, name: Option<&str>) -> String {
+    match name {
+        Some(n) if !n.is_empty() => format!("{kind}[{index}] \"{n}\""),
+        _ => format!("{kind}[{index}]"),
+    }
+}
+
+/// Triangles of a primitive (glTF 2.0 spec 3.7.2.1): a strip's triangle i
+/// is (i, i + 1 + i % 2, i + 2 - i % 2), a fan's is (i + 1, i + 2, 0).
+fn triangulate(mode: Mode, list: &[u32]) -> Vec<[u32; 3]> {
+    match mode {
+        Mode::TriangleStrip => (0..list.len().saturating_sub(2))
+            .map(|i| [list[i], list[i + 1 + i % 2], list[i + 2 - i % 2]])
+            .collect(),
+        Mode::TriangleFan => (0..list.len().saturating_sub(2)).map(|i| [list[i + 1], list[i + 2], list[0]]).collect(),
+        _ => list.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
+    }
+}
+
+/// A rough conductor whose normal-incidence reflectance is `f0` at every
+/// wavelength (see `gltf_conductor_eta_k`).
+fn conductor_from_f0(f0: &Spectrum, alpha: f32) -> Bsdf {
+    let eta = Spectrum::from_fn(|l| gltf_conductor_eta_k(f0.eval(l)).0);
+    let k = Spectrum::from_fn(|l| gltf_conductor_eta_k(f0.eval(l)).1);
+    Bsdf::Conductor(Conductor::new(eta, k, alpha, alpha))
+}
+
+/// The complex index (n, k) of a metal with normal-incidence reflectance
+/// `r` (clamped to [0, 0.999]).
+///
+/// Gulbrandsen 2014, "Artist Friendly Metallic Fresnel" (JCGT 3(4)), maps
+/// a reflectivity r and an edge tint g to n = g n_min + (1 - g) n_max with
+/// n_min = (1 - r) / (1 + r), n_max = (1 + sqrt r) / (1 - sqrt r), and
+/// k^2 = ((n + 1)^2 r - (n - 1)^2) / (1 - r), which gives F(0) = r exactly.
+/// glTF has no edge tint; g = 1 - (1 - r)^3 is a fit to the Schlick curve
+/// glTF viewers draw, F = r + (1 - r)(1 - cos)^5: for r in [0.02, 0.99]
+/// the exact Fresnel reflectance of (n, k) stays within 0.055 of it at every
+/// angle and within 0.016 in hemispherical albedo (a constant g = 1 is off
+/// by up to 0.22 near r = 0.2).
+pub fn gltf_conductor_eta_k(r: f32) -> (f32, f32) {
+    let r = r.clamp(0.0, 0.999);
+    let g = 1.0 - (1.0 - r).powi(3);
+    let sr = r.sqrt();
+    let n_min = (1.0 - r) / (1.0 + r);
+    let n_max = (1.0 + sr) / (1.0 - sr);
+    let n = g * n_min + (1.0 - g) * n_max;
+    let k2 = ((n + 1.0) * (n + 1.0) * r - (n - 1.0) * (n - 1.0)) / (1.0 - r);
+    (n, k2.max(0.0).sqrt())
+}
+
+/// The default framing (see DEFAULT_FOV_DEG).
+fn default_camera(meshes: &[ImportedMesh]) -> Camera {
+    let (mut lo, mut hi) = (Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY));
+    for m in meshes {
+        for p in m.mesh.triangles().flatten() {
+            lo = lo.min(p);
+            hi = hi.max(p);
+        }
+    }
+    let (center, radius) = if lo.cmple(hi).all() { ((lo + hi) * 0.5, (hi - lo).length() * 0.5) } else { (Vec3A::ZERO, 1.0) };
+    let radius = if radius > 0.0 { radius } else { 1.0 };
+    let elevation = DEFAULT_ELEVATION_DEG.to_radians();
+    let dir = Vec3A::new(0.0, elevation.sin(), elevation.cos());
+    let distance = radius / (DEFAULT_FOV_DEG.to_radians() * 0.5).sin();
+    let width = (DEFAULT_HEIGHT as f32 * DEFAULT_ASPECT).round() as u32;
+    Camera::new(center + dir * distance, center, Vec3A::Y, DEFAULT_FOV_DEG, width, DEFAULT_HEIGHT)
+}
+
+/// Standard or URL-safe base64 (RFC 4648), padding optional; None if
+/// malformed.
+fn base64_decode(s: &str) -> Option<Vec<u8>> {
+    let s = s.trim_end_matches('=');
+    let mut out = Vec::with_capacity(s.len() * 3 / 4);
+    let (mut acc, mut bits) = (0u32, 0u32);
+    for c in s.bytes() {
+        let v = match c {
+            b'A'..=b'Z' => c - b'A',
+            b'a'..=b'z' => c - b'a' + 26,
+            b'0'..=b'9' => c - b'0' + 52,
+            b'+' | b'-' => 62,
+            b'/' | b'_' => 63,
+            _ => return None,
+        };
+        acc = (acc << 6) | v as u32;
+        bits += 6;
+        if bits >= 8 {
+            bits -= 8;
+            out.push((acc >> bits) as u8);
+            acc &= (1 << bits) - 1;
+        }
+    }
+    Some(out)
+}
+
+/// Decodes the %XX escapes of a relative URI.
+fn percent_decode(s: &str) -> String {
+    let b = s.as_bytes();
+    let hex = |c: u8| (c as char).to_digit(16);
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        if b[i] == b'%' && i + 2 < b.len() {
+            if let (Some(h), Some(l)) = (hex(b[i + 1]), hex(b[i + 2])) {
+                out.push((h * 16 + l) as u8);
+                i += 3;
+                continue;
+            }
+        }
+        out.push(b[i]);
+        i += 1;
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn base64_decodes_rfc4648_vectors() {
+        assert_eq!(base64_decode("").unwrap(), b"");
+        assert_eq!(base64_decode("Zg==").unwrap(), b"f");
+        assert_eq!(base64_decode("Zm9vYg==").unwrap(), b"foob");
+        assert_eq!(base64_decode("Zm9vYmFy").unwrap(), b"foobar");
+        assert!(base64_decode("Zm9v*").is_none());
+        assert_eq!(percent_decode("a%20b.bin"), "a b.bin");
+    }
+
+    #[test]
+    fn strips_and_fans_follow_the_spec() {
+        assert_eq!(triangulate(Mode::TriangleStrip, &[0, 1, 2, 3]), vec![[0, 1, 2], [1, 3, 2]]);
+        assert_eq!(triangulate(Mode::TriangleFan, &[0, 1, 2, 3]), vec![[1, 2, 0], [2, 3, 0]]);
+    }
+}

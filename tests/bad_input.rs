@@ -1,0 +1,400 @@
+//! Bad input to `prism render`: one test case per row of the "Errors" table
+//! in docs/scene-format.md that tests/cli.rs does not already cover. Each
+//! case must exit non-zero with one clear message (a single `error:` line)
+//! that names the file, line and column and the field (or, for command-line
+//! problems, the flag or path), and must leave an existing output file and
+//! its sidecar untouched (no temporary file left either).
+//!
+//! `error_table_matches_the_tests` keeps the table and the tests in step:
+//! every row names a case here or a test function in tests/cli.rs, and
+//! every case here has a row.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+const GOOD: &str = r#"{
+  "camera": {"position": [0, 0, -3], "look_at": [0, 0, 0], "fov": 40, "width": 8, "height": 8},
+  "materials": {"white": {"type": "diffuse", "reflectance": 0.5}},
+  "objects": [{"shape": {"type": "sphere", "center": [0, 0, 0], "radius": 1}, "material": "white"}],
+  "lights": [{"type": "environment", "radiance": 1.0}]
+}
+"#;
+
+/// What a case changes: the scene text and/or the command line.
+struct Case {
+    id: &'static str,
+    /// (from, to) replacements applied to GOOD, in order (`to` = TRUNCATE:
+    /// the text ends where `from` starts).
+    edits: &'static [(&'static str, &'static str)],
+    /// Extra arguments; `{dir}` is the case's directory.
+    args: &'static [&'static str],
+    /// Output EXR, relative to the case's directory unless absolute.
+    out: &'static str,
+    /// Expected in the one error line: the scene file's position prefix
+    /// (`s.json:L:`, empty for command-line errors) and words.
+    position: &'static str,
+    words: &'static [&'static str],
+}
+
+const CASES: &[Case] = &[
+    Case {
+        id: "truncated",
+        edits: &[("  \"objects\"", TRUNCATE)],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:4:",
+        words: &["EOF while parsing"],
+    },
+    Case {
+        id: "nan-token",
+        edits: &[("\"fov\": 40", "\"fov\": NaN")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:2:",
+        words: &["camera.fov", "expected value"],
+    },
+    Case {
+        id: "infinity-token",
+        edits: &[("\"radius\": 1", "\"radius\": -Infinity")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:4:",
+        words: &["objects[0].shape.radius: invalid number"],
+    },
+    Case {
+        id: "f32-overflow",
+        edits: &[("[0, 0, -3]", "[0, 0, -1e39]")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:2:",
+        words: &["camera.position: numbers must be finite"],
+    },
+    Case {
+        id: "spectrum-overflow",
+        edits: &[("\"radiance\": 1.0", "\"radiance\": {\"rgb\": [1, 1, 1], \"scale\": 3e38}")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:5:",
+        words: &["lights[0].radiance: the spectrum is not finite"],
+    },
+    Case {
+        id: "spectrum-type",
+        edits: &[("\"reflectance\": 0.5", "\"reflectance\": [0.5]")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:3:",
+        words: &["materials.white", "expected a number, a spectrum name, or an object"],
+    },
+    Case {
+        id: "missing-field",
+        edits: &[("\"fov\": 40, ", "")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:2:",
+        words: &["camera: missing field `fov`"],
+    },
+    Case {
+        id: "unknown-type",
+        edits: &[("\"type\": \"diffuse\"", "\"type\": \"plastic\"")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:3:",
+        words: &["materials.white", "unknown variant `plastic`", "dielectric"],
+    },
+    Case {
+        id: "unknown-glass",
+        edits: &[("\"materials\": {", "\"materials\": {\"glass\": {\"type\": \"dielectric\", \"ior\": \"BK8\"}, ")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:3:",
+        words: &["materials.glass.ior: unknown spectrum \"BK8\"", "BK7"],
+    },
+    Case {
+        id: "unknown-illuminant",
+        edits: &[("\"radiance\": 1.0", "\"radiance\": \"D66\"")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:5:",
+        words: &["lights[0].radiance: unknown spectrum \"D66\"", "D65"],
+    },
+    Case {
+        id: "unknown-metal",
+        edits: &[("\"materials\": {", "\"materials\": {\"gold\": {\"type\": \"conductor\", \"metal\": \"Gold\"}, ")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:3:",
+        words: &["materials.gold.metal: unknown metal \"Gold\" (known: Ag, Al, Au, Cu, CuZn)"],
+    },
+    Case {
+        id: "duplicate-name",
+        edits: &[("\"materials\": {", "\"materials\": {\"white\": {\"type\": \"mirror\"}, ")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:3:",
+        words: &["materials", "duplicate name \"white\""],
+    },
+    Case {
+        id: "missing-mesh",
+        edits: &[("{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1}", "{\"type\": \"obj\", \"file\": \"nope.obj\"}")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:4:",
+        words: &["objects[0].shape.file: cannot read mesh", "nope.obj", "no such file"],
+    },
+    Case {
+        id: "mesh-not-a-file",
+        edits: &[("{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1}", "{\"type\": \"obj\", \"file\": \".\"}")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:4:",
+        words: &["objects[0].shape.file: cannot read mesh", "not a regular file"],
+    },
+    Case {
+        id: "index-out-of-range",
+        edits: &[(
+            "{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1}",
+            "{\"type\": \"mesh\", \"positions\": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], \"indices\": [[0, 1, 7]]}",
+        )],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:4:",
+        words: &["objects[0].shape.indices: index 7 is out of range (3 positions)"],
+    },
+    Case {
+        id: "reflectance-above-1",
+        edits: &[("\"reflectance\": 0.5", "\"reflectance\": 1.5")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:3:",
+        words: &["materials.white.reflectance: a reflectance must not exceed 1"],
+    },
+    Case {
+        id: "degenerate-camera",
+        edits: &[("\"look_at\": [0, 0, 0]", "\"look_at\": [0, 0, -3]")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:2:",
+        words: &["camera.look_at: look_at must differ from position"],
+    },
+    Case {
+        id: "fov-out-of-range",
+        edits: &[("\"fov\": 40", "\"fov\": 180")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:2:",
+        words: &["camera.fov: fov must be between 0 and 180 degrees"],
+    },
+    Case {
+        id: "fov-too-small",
+        edits: &[("\"fov\": 40", "\"fov\": 1e-40")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:2:",
+        words: &["camera.fov: fov 1e-40 is too small"],
+    },
+    Case {
+        id: "negative-spp-in-scene",
+        edits: &[("\"lights\"", "\"render\": {\"spp\": -1},\n  \"lights\"")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:5:",
+        words: &["render.spp: invalid value: integer `-1`, expected u32"],
+    },
+    Case {
+        id: "zero-spp-in-scene",
+        edits: &[("\"lights\"", "\"render\": {\"spp\": 0},\n  \"lights\"")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:5:",
+        words: &["render.spp: spp must be at least 1"],
+    },
+    Case {
+        id: "negative-spp-flag",
+        edits: &[],
+        args: &["--spp=-1"],
+        out: "out.exr",
+        position: "",
+        words: &["invalid value '-1' for '--spp <SPP>'"],
+    },
+    Case {
+        // clap takes a separate "-1" for a flag: the message does not name
+        // --spp (and its tip, `-- -1`, would not help). Documented as is.
+        id: "negative-spp-flag-spaced",
+        edits: &[],
+        args: &["--spp", "-1"],
+        out: "out.exr",
+        position: "",
+        words: &["unexpected argument '-1' found"],
+    },
+    Case { id: "zero-spp-flag", edits: &[], args: &["--spp", "0"], out: "out.exr", position: "", words: &["--spp must be at least 1"] },
+    Case {
+        id: "output-not-writable",
+        edits: &[],
+        args: &[],
+        out: "/proc/prism-bad-input.exr",
+        position: "",
+        words: &["cannot write /proc/prism-bad-input.exr: directory is not writable"],
+    },
+    Case {
+        id: "output-is-a-directory",
+        edits: &[],
+        args: &[],
+        out: "taken.exr",
+        position: "",
+        words: &["taken.exr: it is a directory"],
+    },
+    Case {
+        id: "output-not-exr",
+        edits: &[],
+        args: &[],
+        out: "out.png",
+        position: "",
+        words: &["--out must name an .exr file, got", "out.png"],
+    },
+    Case {
+        id: "preview-not-writable",
+        edits: &[],
+        args: &["--png", "/no/such/dir/preview.png"],
+        out: "out.exr",
+        position: "",
+        words: &["cannot write /no/such/dir/preview.png: directory /no/such/dir does not exist"],
+    },
+];
+
+/// As the `to` of an edit: cut the text where `from` starts.
+const TRUNCATE: &str = "\0truncate";
+
+const PREVIOUS: &[u8] = b"previous contents";
+
+fn case_dir(id: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("prism-bad-input-{}-{id}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Runs one case; returns a description of what went wrong, if anything.
+fn run(case: &Case) -> Result<(), String> {
+    let dir = case_dir(case.id);
+    let mut text = GOOD.to_string();
+    for (from, to) in case.edits {
+        if !text.contains(from) {
+            return Err(format!("edit {from:?} does not apply"));
+        }
+        text = if *to == TRUNCATE { text[..text.find(from).unwrap()].to_string() } else { text.replacen(from, to, 1) };
+    }
+    std::fs::write(dir.join("s.json"), &text).unwrap();
+    std::fs::create_dir_all(dir.join("taken.exr")).unwrap();
+    let out = if Path::new(case.out).is_absolute() { PathBuf::from(case.out) } else { dir.join(case.out) };
+    // An existing output and sidecar, which a failure must not touch.
+    let sidecar = out.with_extension("json");
+    let keep = out.parent().is_some_and(|p| p == dir) && case.out != "taken.exr";
+    if keep {
+        std::fs::write(&out, PREVIOUS).unwrap();
+        std::fs::write(&sidecar, PREVIOUS).unwrap();
+    }
+    let o = Command::new(env!("CARGO_BIN_EXE_prism"))
+        .arg("render")
+        .arg(dir.join("s.json"))
+        .arg("--out")
+        .arg(&out)
+        .args(case.args)
+        .arg("--quiet")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr).to_string();
+    let mut problems = Vec::new();
+    if o.status.success() {
+        problems.push("exit status 0".to_string());
+    }
+    let errors: Vec<&str> = stderr.lines().filter(|l| l.starts_with("error:")).collect();
+    if errors.len() != 1 {
+        problems.push(format!("{} error lines", errors.len()));
+    }
+    let line = errors.first().copied().unwrap_or_default();
+    if !case.position.is_empty() && !line.contains(&format!("{}{}", dir.join("").display(), case.position)) {
+        problems.push(format!("no {:?} position", case.position));
+    }
+    for w in case.words {
+        if !line.contains(w) {
+            problems.push(format!("missing {w:?}"));
+        }
+    }
+    if keep {
+        if std::fs::read(&out).ok().as_deref() != Some(PREVIOUS) || std::fs::read(&sidecar).ok().as_deref() != Some(PREVIOUS) {
+            problems.push("the existing output or sidecar changed".to_string());
+        }
+    } else if case.out != "taken.exr" && out.exists() {
+        problems.push("an output file was written".to_string());
+    }
+    let leftovers: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+        .filter(|n| n.starts_with('.'))
+        .collect();
+    if !leftovers.is_empty() {
+        problems.push(format!("temporary files left: {leftovers:?}"));
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    if problems.is_empty() {
+        eprintln!("{:<24} {line}", case.id);
+        Ok(())
+    } else {
+        Err(format!("{}: {}\n  stderr: {stderr}", case.id, problems.join("; ")))
+    }
+}
+
+#[test]
+fn every_bad_input_gives_one_clear_error_and_keeps_existing_output() {
+    let failures: Vec<String> = CASES.iter().filter_map(|c| run(c).err()).collect();
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// The same scene without the fault renders (each case fails for the
+/// reason it names, not because the base scene or command is broken).
+#[test]
+fn the_base_case_succeeds() {
+    let dir = case_dir("base");
+    std::fs::write(dir.join("s.json"), GOOD).unwrap();
+    let out = dir.join("out.exr");
+    std::fs::write(&out, PREVIOUS).unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_prism"))
+        .arg("render")
+        .arg(dir.join("s.json"))
+        .arg("--out")
+        .arg(&out)
+        .args(["--spp", "1", "--quiet", "--png"])
+        .arg(dir.join("preview.png"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_ne!(std::fs::read(&out).unwrap(), PREVIOUS, "a successful render replaces the output");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Every row of the Errors table in docs/scene-format.md names a case of
+/// this file or a test of tests/cli.rs, and every case here has a row.
+#[test]
+fn error_table_matches_the_tests() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let doc = std::fs::read_to_string(root.join("docs/scene-format.md")).unwrap();
+    let cli = std::fs::read_to_string(root.join("tests/cli.rs")).unwrap();
+    let section = &doc[doc.find("\n## Errors").expect("docs/scene-format.md has an Errors section")..];
+    let mut rows = Vec::new();
+    for line in section.lines().filter(|l| l.starts_with("| `")) {
+        let cols: Vec<&str> = line.split(" | ").collect();
+        let id = cols[0].trim_start_matches("| `").split('`').next().unwrap();
+        let test = cols.last().unwrap().trim_end_matches('|').trim().trim_matches('`');
+        rows.push(id.to_string());
+        if let Some(f) = test.strip_prefix("cli.rs: ") {
+            assert!(cli.contains(&format!("fn {f}(")), "row {id}: tests/cli.rs has no test {f}");
+        } else {
+            assert_eq!(test, "bad_input.rs", "row {id}: unknown test column {test:?}");
+            assert!(CASES.iter().any(|c| c.id == id), "row {id}: no case in tests/bad_input.rs");
+        }
+    }
+    for c in CASES {
+        assert!(rows.iter().any(|r| r == c.id), "case {} has no row in the Errors table", c.id);
+    }
+    assert!(rows.len() >= CASES.len() + 8, "the table should also list the cases tested in tests/cli.rs");
+}

@@ -1,0 +1,254 @@
+//! `prism converge` (src/converge.rs): a small run writes every output and
+//! its CSV parses; relMSE against an exact reference falls as 1/spp for an
+//! unbiased estimator (the white room); grid checkpoints are reproducible;
+//! a time budget is respected; bad arguments fail clearly.
+
+#[path = "common/scenes.rs"]
+mod scenes;
+
+use prism::converge::{run, Clock, ConvergeConfig, ConvergeResults, IntegratorSpec, ReferenceSource};
+use prism::film::write_exr;
+use prism::spectrum::Spectrum;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn temp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("prism-converge-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn scene_path(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(name)
+}
+
+fn prism(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_prism")).args(args).current_dir(env!("CARGO_MANIFEST_DIR")).output().unwrap()
+}
+
+fn config(scene: &str, integrators: &str, reference: ReferenceSource, out: &Path, res: u32) -> ConvergeConfig {
+    ConvergeConfig {
+        scene: scene_path(scene),
+        integrators: IntegratorSpec::parse_list(integrators, &[]).unwrap(),
+        reference,
+        time: None,
+        clock: Clock::Wall,
+        max_spp: None,
+        out: out.to_path_buf(),
+        resolution: Some((res, res)),
+        seed: Some(11),
+        threads: 0,
+        max_depth: None,
+        progress: false,
+        exposure: None,
+        save_exr: false,
+        command: "tests/converge.rs".to_string(),
+    }
+}
+
+/// The white room's exact image (every pixel the colour of Le / (1 - rho) =
+/// 2.5) as a reference EXR without sidecar.
+fn white_room_reference(dir: &Path, res: u32) -> PathBuf {
+    let v = scenes::srgb_of(&Spectrum::Constant(2.5)).map(|c| c as f32);
+    let path = dir.join("exact.exr");
+    write_exr(&path, res, res, &vec![v; (res * res) as usize]).unwrap();
+    path
+}
+
+#[test]
+fn small_run_writes_every_output_and_the_csv_parses() {
+    let d = temp_dir("outputs");
+    let out = d.join("run");
+    let o = prism(&[
+        "converge",
+        "scenes/cornell-box.json",
+        "--integrators",
+        "path,bdpt:uniform",
+        "--reference-spp",
+        "8",
+        "--reference-integrator",
+        "path",
+        "--reference-passes",
+        "2",
+        "--spp",
+        "6",
+        "--width",
+        "16",
+        "--height",
+        "16",
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for f in [
+        "results.csv",
+        "results.json",
+        "error-vs-time.svg",
+        "error-vs-time.png",
+        "error-vs-spp.svg",
+        "error-vs-spp.png",
+        "images.png",
+        "errors.png",
+        "report.md",
+        "reference.exr",
+        "reference.json",
+    ] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+
+    // CSV: header, then rows of 7 fields with spp rising to the cap per integrator.
+    let csv = std::fs::read_to_string(out.join("results.csv")).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(lines.next().unwrap(), "integrator,spp,seconds,cpu_seconds,rel_mse,mse,mae,by_spp");
+    let mut rows: Vec<(String, u32, f64, f64, bool)> = Vec::new();
+    for line in lines {
+        let f: Vec<&str> = line.split(',').collect();
+        assert_eq!(f.len(), 8, "{line}");
+        let nums: Vec<f64> = [f[2], f[4], f[5], f[6]].iter().map(|x| x.parse().unwrap()).collect();
+        assert!(nums.iter().all(|x| x.is_finite() && *x >= 0.0), "{line}");
+        assert!(f[3].is_empty() || f[3].parse::<f64>().unwrap() >= 0.0, "{line}");
+        rows.push((f[0].to_string(), f[1].parse().unwrap(), nums[0], nums[1], f[7].parse().unwrap()));
+    }
+    for label in ["path", "bdpt:uniform"] {
+        let spp: Vec<u32> = rows.iter().filter(|r| r.0 == label).map(|r| r.1).collect();
+        assert_eq!(spp, [1, 2, 3, 4, 5, 6], "{label}");
+        assert!(rows.iter().filter(|r| r.0 == label).all(|r| r.4), "an spp-limited run is deterministic throughout");
+    }
+
+    let results: ConvergeResults =
+        serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap()).unwrap();
+    assert_eq!(results.integrators.len(), 2);
+    assert_eq!(results.integrators[1].mis, "uniform");
+    assert_eq!(results.reference.integrator.as_deref(), Some("path"));
+    assert!(results.integrators.iter().all(|x| x.efficiency.is_finite() && x.efficiency > 0.0));
+
+    let svg = std::fs::read_to_string(out.join("error-vs-time.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.contains("bdpt:uniform") && svg.contains("relMSE"));
+    assert!(std::fs::read_to_string(out.join("error-vs-spp.svg")).unwrap().contains("slope -1"));
+    let png = image::open(out.join("error-vs-time.png")).unwrap().to_rgb8();
+    assert!(
+        png.width() >= 800 && png.pixels().any(|p| p.0 == [0, 0, 0] || p.0[0] < 60),
+        "chart PNG has no text or axes"
+    );
+    assert_eq!(
+        image::open(out.join("images.png")).unwrap().width(),
+        image::open(out.join("errors.png")).unwrap().width() + 264
+    );
+
+    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+    for needle in
+        ["| rank | integrator", "error-vs-time.svg", "images.png", "errors.png", "bdpt:uniform", "Determinism"]
+    {
+        assert!(report.contains(needle), "report.md lacks {needle:?}");
+    }
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// relMSE against the exact white-room image is pure variance, so it falls
+/// as 1/spp: the fitted log-log slope must be close to -1 (loosely: the
+/// checkpoints of one progressive image are correlated).
+#[test]
+fn rel_mse_falls_as_one_over_spp_in_the_white_room() {
+    let d = temp_dir("slope");
+    let res = 16;
+    let exact = white_room_reference(&d, res);
+    for seed in [11, 12] {
+        let mut cfg = config("white-room.json", "path", ReferenceSource::File(exact.clone()), &d.join("run"), res);
+        cfg.max_spp = Some(256);
+        cfg.seed = Some(seed);
+        let r = run(&cfg).unwrap();
+        let x = &r.integrators[0];
+        let slope = x.slope.unwrap();
+        eprintln!("seed {seed}: slope {slope:.3}, relMSE {:.3e} at {} spp", x.rel_mse, x.spp);
+        assert!((-1.25..=-0.8).contains(&slope), "seed {seed}: slope {slope}");
+        let first = x.checkpoints.first().unwrap().rel_mse;
+        assert!(x.rel_mse < first / 50.0, "relMSE fell only from {first} to {}", x.rel_mse);
+    }
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn grid_checkpoints_are_reproducible_and_the_time_budget_holds() {
+    let d = temp_dir("determinism");
+    let res = 16;
+    let exact = white_room_reference(&d, res);
+    let go = |out: &str, time: Option<f64>, clock: Clock, max_spp: Option<u32>| {
+        let mut cfg = config("white-room.json", "path,light", ReferenceSource::File(exact.clone()), &d.join(out), res);
+        cfg.time = time;
+        cfg.clock = clock;
+        cfg.max_spp = max_spp;
+        run(&cfg).unwrap()
+    };
+    let a = go("a", None, Clock::Wall, Some(20));
+    let b = go("b", Some(1000.0), Clock::Wall, Some(20));
+    for (x, y) in a.integrators.iter().zip(&b.integrators) {
+        let errs = |r: &prism::converge::IntegratorResult| {
+            r.checkpoints.iter().map(|c| (c.spp, c.rel_mse)).collect::<Vec<_>>()
+        };
+        assert_eq!(errs(x), errs(y), "{}: checkpoints differ between identical runs", x.label);
+    }
+
+    for clock in [Clock::Wall, Clock::Cpu] {
+        let t = go("t", Some(1.0), clock, None);
+        for x in &t.integrators {
+            eprintln!(
+                "{clock:?} clock, {}: {} spp in {:.3} s ({:.3} s wall)",
+                x.label, x.spp, x.seconds, x.wall_seconds
+            );
+            assert!((0.5..3.0).contains(&x.seconds), "{}: {} s for a 1 s budget", x.label, x.seconds);
+            assert!(x.spp > 20, "{}: only {} spp in 1 s at 16x16", x.label, x.spp);
+            let times: Vec<f64> = x.checkpoints.iter().map(|c| c.time(clock)).collect();
+            assert!(times.windows(2).all(|w| w[0] <= w[1]));
+        }
+    }
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn bad_arguments_fail_clearly() {
+    let d = temp_dir("args");
+    let out = d.join("o");
+    let o = out.to_str().unwrap();
+    let cases: [(&[&str], &str); 4] = [
+        (&["converge", "scenes/white-room.json", "--reference-spp", "4", "--out", o], "give a budget"),
+        (&["converge", "scenes/white-room.json", "--spp", "4", "--out", o], "give the reference"),
+        (
+            &[
+                "converge",
+                "scenes/white-room.json",
+                "--integrators",
+                "magic",
+                "--spp",
+                "2",
+                "--reference-spp",
+                "2",
+                "--out",
+                o,
+            ],
+            "unknown integrator",
+        ),
+        (
+            &[
+                "converge",
+                "scenes/white-room.json",
+                "--integrators",
+                "path:uniform",
+                "--spp",
+                "2",
+                "--reference-spp",
+                "2",
+                "--out",
+                o,
+            ],
+            "MIS heuristic",
+        ),
+    ];
+    for (args, message) in cases {
+        let r = prism(args);
+        let e = String::from_utf8_lossy(&r.stderr);
+        assert!(!r.status.success() && e.contains(message), "{args:?}: {e}");
+    }
+    std::fs::remove_dir_all(&d).unwrap();
+}

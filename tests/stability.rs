@@ -1,0 +1,757 @@
+//! Where methods fail (VALIDATION.md §5, TRANSPORT-NOTES.md §8): every
+//! estimator, on scenes built to break it, never produces a NaN, infinite or
+//! negative sample; warns about the path classes it cannot sample (naming
+//! the material or light) and never on the Cornell box; and agrees with the
+//! others (z-test, src/stats.rs, at a looser budget) wherever it can sample.
+//!
+//! - `scenes/mirror-view.json`: a mirror sphere seen directly. Path tracing,
+//!   BDPT and simple_path agree everywhere; light tracing equals path tracing
+//!   on pixels whose first hit is diffuse and is exactly black on the mirror.
+//! - `scenes/sds-point-light.json`: a point light, water, a pool floor seen
+//!   through the water (L S D S E). The caustic is missing identically in
+//!   every estimator: the water is exactly black in all of them, the rest
+//!   agrees, and with an area light in place of the point light the floor
+//!   does light up (so the black is the missing path class, not the scene).
+//! - Bad numbers: degenerate and zero-area triangles, zero-length and
+//!   flipped shading normals, grazing rays, roughness 0, eta 1, lights and
+//!   the camera inside closed objects, 1x1 and 64x1 images.
+//! - Self-intersection: the same lit floor and box at scales 1e-3, 1, 1e5.
+//!
+//! Samples are checked where the film checks them (DroppedSamples: NaN,
+//! infinite, negative, per reason) and pixels in CIE XYZ: linear sRGB may be
+//! legitimately negative for a non-negative spectrum outside its gamut, XYZ
+//! never is.
+
+#[path = "common/scenes.rs"]
+mod scenes;
+
+use glam::{DMat3, DVec3, Vec2};
+use prism::film::Film;
+use prism::integrators::{Integrator, INTEGRATORS};
+use prism::render::{render, RenderOptions};
+use prism::scene::{parse_scene, Scene};
+use prism::stats::{compare_in_family, BlockStats, Comparison, Image};
+use scenes::{integrator, scene};
+use std::path::Path;
+use std::process::Command;
+
+const K: u32 = 16;
+
+fn seed() -> u64 {
+    std::env::var("PRISM_TEST_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(0x57AB)
+}
+
+fn all_integrators() -> Vec<(&'static str, Box<dyn Integrator>)> {
+    INTEGRATORS.iter().map(|i| (i.name, integrator(i.name))).collect()
+}
+
+/// XYZ of a linear sRGB pixel (inverse of the standard matrix of
+/// spectrum::xyz_to_linear_srgb).
+fn xyz(p: [f32; 3]) -> DVec3 {
+    let m = DMat3::from_cols_array(&[
+        3.240_454_2,
+        -0.969_266,
+        0.055_643_4,
+        -1.537_138_5,
+        1.876_010_8,
+        -0.204_025_9,
+        -0.498_531_4,
+        0.041_556,
+        1.057_225_2,
+    ]);
+    m.inverse() * DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)
+}
+
+/// Panics unless every pixel is finite with non-negative X, Y and Z.
+fn assert_sane(image: &[[f32; 3]], what: &str) {
+    for (i, p) in image.iter().enumerate() {
+        assert!(
+            p.iter().all(|c| c.is_finite()),
+            "{what}: pixel {i} is not finite: {p:?}"
+        );
+        let v = xyz(*p);
+        let tol = 1e-5 * v.abs().max_element().max(1e-3);
+        assert!(
+            v.min_element() >= -tol,
+            "{what}: pixel {i} is negative in XYZ: {v} (sRGB {p:?})"
+        );
+    }
+}
+
+/// One render of `spp` samples; panics if the film dropped any sample or a
+/// pixel is not sane.
+fn render_checked(s: &Scene, integ: &dyn Integrator, spp: u32, seed: u64, what: &str) -> Image {
+    let mut film = Film::new(s.camera.width, s.camera.height);
+    render(
+        s,
+        integ,
+        &RenderOptions {
+            seed,
+            threads: 0,
+            progress: false,
+        },
+        &mut film,
+        0..spp,
+    );
+    let d = film.dropped;
+    assert_eq!(
+        d.total(),
+        0,
+        "{what}: dropped samples: {} NaN, {} infinite, {} negative",
+        d.nan,
+        d.infinite,
+        d.negative
+    );
+    let image = film.image();
+    assert_sane(&image, what);
+    image
+}
+
+/// `k` independent checked passes (seeds seed, seed + 1, ...).
+fn passes_checked(s: &Scene, integ: &dyn Integrator, spp: u32, seed: u64, what: &str) -> Vec<Image> {
+    (0..K)
+        .map(|i| render_checked(s, integ, spp, seed + i as u64, what))
+        .collect()
+}
+
+/// For every pixel, the material names that an `n` x `n` grid of camera rays
+/// through it hit first ("" for none).
+fn first_hits(s: &Scene, n: u32) -> Vec<Vec<String>> {
+    let cam = &s.camera;
+    let mut out = Vec::with_capacity((cam.width * cam.height) as usize);
+    for y in 0..cam.height {
+        for x in 0..cam.width {
+            let mut names: Vec<String> = Vec::new();
+            for j in 0..n {
+                for i in 0..n {
+                    let raster = Vec2::new(
+                        x as f32 + (i as f32 + 0.5) / n as f32,
+                        y as f32 + (j as f32 + 0.5) / n as f32,
+                    );
+                    let name = match s.intersect(&cam.generate_ray(raster)) {
+                        Some(si) => s.materials[si.material as usize].name.clone(),
+                        None => String::new(),
+                    };
+                    if !names.contains(&name) {
+                        names.push(name);
+                    }
+                }
+            }
+            out.push(names);
+        }
+    }
+    out
+}
+
+/// Pixels whose every first hit, and every first hit of their 8 neighbours,
+/// passes `keep` (so that no sliver of another surface hides at the edge).
+fn interior(s: &Scene, hits: &[Vec<String>], keep: impl Fn(&str) -> bool) -> Vec<bool> {
+    let (w, h) = (s.camera.width as i64, s.camera.height as i64);
+    let pure: Vec<bool> = hits.iter().map(|names| names.iter().all(|n| keep(n))).collect();
+    (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| {
+            (-1..=1).all(|dy| {
+                (-1..=1).all(|dx| {
+                    let (u, v) = (x + dx, y + dy);
+                    !(0..w).contains(&u) || !(0..h).contains(&v) || pure[(v * w + u) as usize]
+                })
+            })
+        })
+        .collect()
+}
+
+fn masked(passes: &[Image], mask: &[bool]) -> Vec<Image> {
+    passes
+        .iter()
+        .map(|img| {
+            img.iter()
+                .zip(mask)
+                .map(|(p, &m)| if m { *p } else { [0.0; 3] })
+                .collect()
+        })
+        .collect()
+}
+
+fn stats(passes: &[Image], s: &Scene, block: u32) -> BlockStats {
+    BlockStats::from_passes(passes, s.camera.width, s.camera.height, block)
+}
+
+fn report(what: &str, c: &Comparison) {
+    eprintln!("{what}: {c}");
+}
+
+// ------------------------------------------------------------------ warnings
+
+fn warnings(name: &str, s: &Scene) -> Vec<String> {
+    integrator(name).unsamplable(s)
+}
+
+#[test]
+fn warnings_where_methods_fail() {
+    let cornell = scene("cornell-box.json", 32, 32);
+    let mirror = scene("mirror-view.json", 32, 32);
+    let sds = scene("sds-point-light.json", 32, 32);
+    for i in INTEGRATORS {
+        let w = warnings(i.name, &cornell);
+        assert!(w.is_empty(), "{}: warning on the Cornell box: {w:?}", i.name);
+    }
+    // Mirror seen directly: only light tracing, and it names the material.
+    for i in INTEGRATORS {
+        let w = warnings(i.name, &mirror);
+        eprintln!("mirror-view, {}: {w:?}", i.name);
+        if i.name == "light" {
+            assert!(
+                w.iter().any(|m| m.contains("chrome")),
+                "light tracing does not name the mirror \"chrome\": {w:?}"
+            );
+        } else {
+            assert!(w.is_empty(), "{}: unexpected warning on mirror-view: {w:?}", i.name);
+        }
+    }
+    // S-D-S with a point light: every estimator warns, naming the light;
+    // those that warn about the specular chain also name the material.
+    for i in INTEGRATORS {
+        let w = warnings(i.name, &sds);
+        eprintln!("sds-point-light, {}: {w:?}", i.name);
+        assert!(
+            w.iter().any(|m| m.contains("pool lamp")),
+            "{}: the point light is not named: {w:?}",
+            i.name
+        );
+        if i.name != "simple_path" {
+            assert!(
+                w.iter().any(|m| m.contains("pool lamp") && m.contains("water")),
+                "{}: water not named: {w:?}",
+                i.name
+            );
+        }
+    }
+    // A point light over diffuse surfaces only: nothing to warn about,
+    // except that simple_path cannot hit a point light at all.
+    let text =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/sds-point-light.json")).unwrap();
+    let text = text.replace(
+        r#""water": { "type": "dielectric", "ior": 1.33 }"#,
+        r#""water": { "type": "diffuse" }"#,
+    );
+    let diffuse = parse_scene(&text, "sds-diffuse", Path::new(".")).unwrap().build();
+    for i in INTEGRATORS {
+        let w = warnings(i.name, &diffuse);
+        assert_eq!(w.is_empty(), i.name != "simple_path", "{}: {w:?}", i.name);
+    }
+}
+
+/// `prism render` prints the warnings before rendering, on stderr, and none
+/// (not even a dropped-sample warning) on the Cornell box.
+#[test]
+fn cli_prints_the_warnings() {
+    let dir = std::env::temp_dir().join(format!("prism-stability-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let run = |scene: &str, integ: &str| {
+        let out = dir.join(format!("{integ}.exr"));
+        let o = Command::new(env!("CARGO_BIN_EXE_prism"))
+            .args([
+                "render",
+                &format!("scenes/{scene}"),
+                "--integrator",
+                integ,
+                "--spp",
+                "1",
+                "--width",
+                "8",
+            ])
+            .args(["--height", "8", "--quiet", "--out", out.to_str().unwrap()])
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "{scene} {integ}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        String::from_utf8_lossy(&o.stderr).to_string()
+    };
+    for i in INTEGRATORS {
+        let e = run("cornell-box.json", i.name);
+        assert!(!e.contains("warning"), "{}: {e}", i.name);
+        let e = run("sds-point-light.json", i.name);
+        assert!(
+            e.lines().any(|l| l.starts_with("warning: ") && l.contains("pool lamp")),
+            "{}: {e}",
+            i.name
+        );
+    }
+    let e = run("mirror-view.json", "light");
+    assert!(
+        e.lines().any(|l| l.starts_with("warning: ") && l.contains("chrome")),
+        "{e}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+// ---------------------------------------------------------------- mirror-view
+
+#[test]
+fn mirror_seen_directly() {
+    const RES: u32 = 32;
+    const BLOCK: u32 = 8;
+    let s = scene("mirror-view.json", RES, RES);
+    let hits = first_hits(&s, 4);
+    let diffuse = interior(&s, &hits, |n| n != "chrome" && !n.is_empty());
+    let mirror = interior(&s, &hits, |n| n == "chrome");
+    let (nd, nm) = (
+        diffuse.iter().filter(|&&m| m).count(),
+        mirror.iter().filter(|&&m| m).count(),
+    );
+    eprintln!("mirror-view {RES}x{RES}: {nd} diffuse-first pixels, {nm} mirror pixels");
+    assert!(
+        nd > 300 && nm > 30,
+        "the scene should show both: {nd} diffuse, {nm} mirror pixels"
+    );
+
+    let spp = |name: &str| match name {
+        "simple_path" => 256,
+        "path" => 64,
+        "light" => 32,
+        _ => 32,
+    };
+    let passes: Vec<(&str, Vec<Image>)> = INTEGRATORS
+        .iter()
+        .map(|i| {
+            (
+                i.name,
+                passes_checked(&s, integrator(i.name).as_ref(), spp(i.name), seed() + 100, i.name),
+            )
+        })
+        .collect();
+    let get = |n: &str| &passes.iter().find(|(name, _)| *name == n).unwrap().1;
+    let path = stats(get("path"), &s, BLOCK);
+
+    // Light tracing is black on the mirror, in every pass.
+    for (k, img) in get("light").iter().enumerate() {
+        for (i, p) in img.iter().enumerate() {
+            assert!(
+                !mirror[i] || *p == [0.0; 3],
+                "light pass {k}: mirror pixel {i} is {p:?}, not black"
+            );
+        }
+    }
+    // ... while path tracing renders it.
+    let mirror_mean: f64 = get("path")
+        .iter()
+        .flat_map(|img| img.iter().zip(&mirror).filter(|(_, &m)| m))
+        .map(|(p, _)| p[1] as f64)
+        .sum();
+    assert!(mirror_mean > 0.0, "path tracing shows a black mirror");
+
+    let family = 3;
+    let mut failures = Vec::new();
+    for (name, mask) in [("bdpt", None), ("simple_path", None), ("light", Some(&diffuse))] {
+        let (a, b) = match mask {
+            None => (stats(get(name), &s, BLOCK), path.clone()),
+            Some(m) => (
+                stats(&masked(get(name), m), &s, BLOCK),
+                stats(&masked(get("path"), m), &s, BLOCK),
+            ),
+        };
+        let c = compare_in_family(&a, &b, family);
+        report(
+            &format!(
+                "mirror-view {name} vs path{}",
+                if mask.is_some() { " (diffuse-first pixels)" } else { "" }
+            ),
+            &c,
+        );
+        if !c.passed {
+            failures.push(format!("{name}: {c}"));
+        }
+        // Negative control: a 5% bias is rejected at this budget.
+        let c = compare_in_family(&a.scaled(1.05), &b, family);
+        report(&format!("  negative control {name} x1.05"), &c);
+        assert!(!c.passed, "{name}: a 5% bias went undetected: {c}");
+    }
+    // Light tracing over the whole image must DISAGREE (its mirror is black).
+    let c = compare_in_family(&stats(get("light"), &s, BLOCK), &path, family);
+    report("mirror-view light vs path, all pixels (must disagree)", &c);
+    assert!(!c.passed, "light tracing's black mirror went undetected: {c}");
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+// ------------------------------------------------------------ sds-point-light
+
+#[test]
+fn sds_caustic_is_missing_identically() {
+    const RES: u32 = 32;
+    const BLOCK: u32 = 8;
+    let s = scene("sds-point-light.json", RES, RES);
+    let hits = first_hits(&s, 4);
+    let water = interior(&s, &hits, |n| n == "water");
+    let deck = interior(&s, &hits, |n| n == "deck");
+    let (nw, nd) = (
+        water.iter().filter(|&&m| m).count(),
+        deck.iter().filter(|&&m| m).count(),
+    );
+    eprintln!("sds-point-light {RES}x{RES}: {nw} water pixels, {nd} deck pixels");
+    assert!(
+        nw > 100 && nd > 100,
+        "the scene should show both: {nw} water, {nd} deck pixels"
+    );
+
+    let spp = |name: &str| if name == "light" { 16 } else { 32 };
+    let passes: Vec<(&str, Vec<Image>)> = INTEGRATORS
+        .iter()
+        .map(|i| {
+            (
+                i.name,
+                passes_checked(&s, integrator(i.name).as_ref(), spp(i.name), seed() + 200, i.name),
+            )
+        })
+        .collect();
+    // Through the water every estimator shows exactly nothing: the caustic
+    // (L S D S E) and the light's reflection (E S L) are missing in all.
+    for (name, ps) in &passes {
+        for img in ps {
+            for (i, p) in img.iter().enumerate() {
+                assert!(
+                    !water[i] || *p == [0.0; 3],
+                    "{name}: water pixel {i} is {p:?}, not black"
+                );
+            }
+        }
+    }
+    // simple_path cannot hit a point light: everything is black.
+    let simple = &passes.iter().find(|(n, _)| *n == "simple_path").unwrap().1;
+    assert!(
+        simple.iter().flatten().all(|p| *p == [0.0; 3]),
+        "simple_path found light from a point light"
+    );
+    // The deck is lit directly (D L): path, light and bdpt agree everywhere.
+    let st: Vec<(&str, BlockStats)> = passes
+        .iter()
+        .filter(|(n, _)| *n != "simple_path")
+        .map(|(n, ps)| (*n, stats(ps, &s, BLOCK)))
+        .collect();
+    let path_passes = &passes.iter().find(|(n, _)| *n == "path").unwrap().1;
+    let deck_mean: f64 = path_passes
+        .iter()
+        .flat_map(|img| img.iter().zip(&deck).filter(|(_, &m)| m))
+        .map(|(p, _)| p[1] as f64)
+        .sum();
+    assert!(deck_mean > 0.0, "the deck is black");
+    let family = 3;
+    let mut failures = Vec::new();
+    for i in 0..st.len() {
+        for j in i + 1..st.len() {
+            let c = compare_in_family(&st[i].1, &st[j].1, family);
+            report(&format!("sds {} vs {}", st[i].0, st[j].0), &c);
+            if !c.passed {
+                failures.push(format!("{} vs {}: {c}", st[i].0, st[j].0));
+            }
+        }
+    }
+    let c = compare_in_family(&st[0].1.scaled(1.05), &st[1].1, family);
+    report("  negative control x1.05", &c);
+    assert!(!c.passed, "a 5% bias went undetected: {c}");
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+
+    // Control: a small area light in place of the point light makes the
+    // pool floor visible through the water for path tracing and BDPT, so the
+    // black above is the missing path class, not a scene that blocks light.
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/sds-point-light.json");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let point = r#"{ "type": "point", "name": "pool lamp", "position": [0.3, 2.5, 0.2], "intensity": 10 }"#;
+    assert!(text.contains(point));
+    let bulb = r#"{ "name": "bulb", "shape": { "type": "sphere", "center": [0.3, 2.5, 0.2], "radius": 0.15, "subdivisions": 2 }, "material": "black", "emission": 40 },
+    { "name": "deck -x""#;
+    let text = text.replace(point, "").replace(
+        r#"{
+      "name": "deck -x""#,
+        bulb,
+    );
+    let mut b = parse_scene(&text, "sds-area", path.parent().unwrap()).unwrap_or_else(|e| panic!("{e}"));
+    b.set_resolution(16, 16);
+    let area = b.build();
+    assert!(warnings("path", &area).is_empty() && warnings("bdpt", &area).is_empty());
+    let hits = first_hits(&area, 4);
+    let water = interior(&area, &hits, |n| n == "water");
+    for name in ["path", "bdpt"] {
+        let img = render_checked(&area, integrator(name).as_ref(), 256, seed() + 300, name);
+        let lit = img.iter().zip(&water).filter(|(p, &m)| m && xyz(**p).y > 0.0).count();
+        let n = water.iter().filter(|&&m| m).count();
+        eprintln!("area-light control, {name}: {lit} of {n} water pixels lit");
+        assert!(
+            n > 20 && lit * 4 > n,
+            "{name}: with an area light the pool floor should show through the water"
+        );
+    }
+}
+
+// --------------------------------------------------------------- bad numbers
+
+/// A lit stage (floor, back wall, a 1x1 area light facing down) with extra
+/// materials, objects and lights, and an optional camera override.
+fn stage(materials: &str, objects: &str, lights: &str, camera: Option<&str>) -> String {
+    let camera =
+        camera.unwrap_or(r#"{"position": [0, 1, -3], "look_at": [0, 0.7, 0], "fov": 45, "width": 16, "height": 16}"#);
+    format!(
+        r#"{{
+  "camera": {camera},
+  "materials": {{
+    "white": {{"type": "diffuse", "reflectance": 0.7}},
+    "black": {{"type": "diffuse", "reflectance": 0}}{materials}
+  }},
+  "objects": [
+    {{"name": "floor", "shape": {{"type": "quad", "corners": [[-2, 0, -2], [-2, 0, 2], [2, 0, 2], [2, 0, -2]]}}, "material": "white"}},
+    {{"name": "wall", "shape": {{"type": "quad", "corners": [[-2, 0, 2], [-2, 3, 2], [2, 3, 2], [2, 0, 2]]}}, "material": "white"}},
+    {{"name": "lamp", "shape": {{"type": "quad", "corners": [[-0.5, 2.5, -0.5], [0.5, 2.5, -0.5], [0.5, 2.5, 0.5], [-0.5, 2.5, 0.5]]}},
+     "material": "black", "emission": 5}}{objects}
+  ],
+  "lights": [{lights}]
+}}"#
+    )
+}
+
+/// Renders `text` with every integrator and checks every sample.
+fn all_sane(case: &str, text: &str, spp: u32) {
+    let b = parse_scene(text, case, Path::new(".")).unwrap_or_else(|e| panic!("{case}: {e}"));
+    let s = b.build();
+    for (name, integ) in all_integrators() {
+        render_checked(&s, integ.as_ref(), spp, seed() + 400, &format!("{case}, {name}"));
+    }
+}
+
+#[test]
+fn bad_numbers_degenerate_geometry() {
+    let mesh = |positions: &str, normals: &str, extra: &str| {
+        format!(
+            r#",
+    {{"shape": {{"type": "mesh", "positions": {positions}, "indices": [[0, 1, 2], [0, 2, 3]], "normals": {normals}}}, "material": "white"{extra}}}"#
+        )
+    };
+    let quad = "[[-0.6, 0.2, -0.5], [-0.6, 1.2, -0.3], [0.6, 1.2, -0.3], [0.6, 0.2, -0.5]]";
+    let degenerate = [
+        // zero-area triangles: collinear, repeated vertices, one point; an
+        // emitting zero-area triangle; a needle of area ~1e-14.
+        mesh("[[0, 0.5, 0], [0.5, 0.5, 0], [1, 0.5, 0], [1.5, 0.5, 0]]", "[]", ""),
+        mesh("[[0, 1, 0], [0, 1, 0], [0.5, 1.5, 0], [0.5, 1.5, 0]]", "[]", ""),
+        mesh(
+            "[[0.2, 0.2, 0.2], [0.2, 0.2, 0.2], [0.2, 0.2, 0.2], [0.2, 0.2, 0.2]]",
+            "[]",
+            "",
+        ),
+        mesh(
+            "[[-1, 0.5, 0], [-0.5, 0.5, 0], [0, 0.5, 0], [0.5, 0.5, 0]]",
+            "[]",
+            r#", "emission": 5"#,
+        ),
+        mesh(
+            "[[0, 0.5, -0.5], [1e-7, 0.5, -0.5], [0, 0.5000001, -0.5], [0, 0.5, -0.5]]",
+            "[]",
+            r#", "emission": 1000"#,
+        ),
+    ]
+    .concat();
+    all_sane("zero-area triangles", &stage("", &degenerate, "", None), 16);
+
+    // Shading normals: all zero; one zero; opposite to the geometric normal;
+    // zero under a transform (normalised to NaN); perpendicular to the surface.
+    let zero = "[[0, 0, 0], [0, 0, 0], [0, 0, 0], [0, 0, 0]]";
+    let one_zero = "[[0, 0.2, -1], [0, 0, 0], [0, 0.2, -1], [0, 0.2, -1]]";
+    let flipped = "[[0, -0.2, 1], [0, -0.2, 1], [0, -0.2, 1], [0, -0.2, 1]]";
+    let transform = r#", "transform": {"scale": [1, 0.5, 1], "rotate": {"axis": [0, 1, 0], "degrees": 20}}"#;
+    for (case, normals, extra) in [
+        ("zero normals", zero, ""),
+        ("one zero normal", one_zero, ""),
+        ("flipped normals", flipped, ""),
+        ("zero normals, transformed", zero, transform),
+        (
+            "normals in the surface plane",
+            "[[1, 0, 0], [1, 0, 0], [1, 0, 0], [1, 0, 0]]",
+            "",
+        ),
+    ] {
+        for (mat, def) in [
+            ("white", ""),
+            ("glass", r#", "glass": {"type": "dielectric", "ior": 1.5}"#),
+            (
+                "rough",
+                r#", "rough": {"type": "conductor", "metal": "Au", "roughness": 0.4}"#,
+            ),
+        ] {
+            let obj = mesh(quad, normals, extra).replace("\"white\"", &format!("\"{mat}\""));
+            all_sane(&format!("{case} ({mat})"), &stage(def, &obj, "", None), 16);
+        }
+    }
+}
+
+#[test]
+fn bad_numbers_grazing_and_materials() {
+    // Grazing: the camera exactly in the floor's plane, a quad seen edge-on,
+    // an area light perpendicular to the floor touching it, a point light in
+    // the floor's plane, a light facing away from everything.
+    let objects = r#",
+    {"name": "edge-on", "shape": {"type": "quad", "corners": [[-1, 0.2, 0], [-1, 1.2, 0], [-1, 1.2, 1], [-1, 0.2, 1]]}, "material": "white"},
+    {"name": "side lamp", "shape": {"type": "quad", "corners": [[1.5, 0, -1], [1.5, 0, 1], [1.5, 1, 1], [1.5, 1, -1]]}, "material": "black", "emission": 3},
+    {"name": "away", "shape": {"type": "quad", "corners": [[-0.5, 2.9, -0.5], [-0.5, 2.9, 0.5], [0.5, 2.9, 0.5], [0.5, 2.9, -0.5]]}, "material": "black", "emission": 3}"#;
+    let lights = r#"{"type": "point", "name": "in the floor", "position": [0, 0, 1], "intensity": 2}"#;
+    let camera = r#"{"position": [-1, 0, -3], "look_at": [-1, 0, 0], "fov": 60, "width": 16, "height": 16}"#;
+    all_sane("grazing", &stage("", objects, lights, Some(camera)), 16);
+
+    // Roughness exactly 0 (smooth), eta exactly 1 (smooth and rough), alpha
+    // at the clamp, alpha 1, anisotropy with one zero axis, albedo 0 and 1.
+    let materials = r#",
+    "c0": {"type": "conductor", "metal": "Ag", "roughness": 0},
+    "c1": {"type": "conductor", "metal": "Cu", "alpha": 1},
+    "ca": {"type": "conductor", "metal": "Al", "alpha_x": 0, "alpha_y": 0.5},
+    "ct": {"type": "conductor", "metal": "Au", "alpha": 1e-5},
+    "d0": {"type": "dielectric", "ior": 1.5, "roughness": 0},
+    "e1": {"type": "dielectric", "ior": 1},
+    "e1r": {"type": "dielectric", "ior": 1, "roughness": 0.5},
+    "dt": {"type": "dielectric", "ior": 1.5, "alpha": 1e-5},
+    "da": {"type": "dielectric", "ior": "BK7", "alpha_x": 0, "alpha_y": 0.3},
+    "m1": {"type": "mirror", "reflectance": 1},
+    "w1": {"type": "diffuse", "reflectance": 1}"#;
+    let mut objects = String::new();
+    for (i, m) in ["c0", "c1", "ca", "ct", "d0", "e1", "e1r", "dt", "da", "m1", "w1"]
+        .iter()
+        .enumerate()
+    {
+        let (x, z) = (-1.5 + (i % 4) as f32 * 1.0, -0.5 + (i / 4) as f32 * 0.7);
+        objects += &format!(
+            r#",
+    {{"shape": {{"type": "sphere", "center": [{x}, 0.35, {z}], "radius": 0.3, "subdivisions": 2, "smooth": {}}}, "material": "{m}"}}"#,
+            i % 2 == 0
+        );
+    }
+    all_sane("roughness 0, eta 1", &stage(materials, &objects, "", None), 16);
+}
+
+#[test]
+fn bad_numbers_enclosures_and_tiny_images() {
+    let glass = r#",
+    "glass": {"type": "dielectric", "ior": 1.5}"#;
+    // Lights inside closed objects: an emitting sphere in a closed diffuse
+    // box, a point light in a closed diffuse sphere, an emitting sphere in a
+    // glass sphere.
+    let objects = r#",
+    {"shape": {"type": "cuboid", "min": [-1.2, 0.1, -0.3], "max": [-0.4, 0.9, 0.5]}, "material": "white"},
+    {"shape": {"type": "sphere", "center": [-0.8, 0.5, 0.1], "radius": 0.2, "subdivisions": 1}, "material": "black", "emission": 10},
+    {"shape": {"type": "sphere", "center": [0.8, 0.5, 0.1], "radius": 0.4, "subdivisions": 2}, "material": "white"},
+    {"shape": {"type": "sphere", "center": [0, 1.5, 0.5], "radius": 0.4, "subdivisions": 2}, "material": "glass"},
+    {"shape": {"type": "sphere", "center": [0, 1.5, 0.5], "radius": 0.1, "subdivisions": 1}, "material": "black", "emission": 20}"#;
+    let lights = r#"{"type": "point", "name": "trapped", "position": [0.8, 0.5, 0.1], "intensity": 5}"#;
+    all_sane("lights inside closed objects", &stage(glass, objects, lights, None), 16);
+
+    // The camera inside a glass sphere, inside a closed diffuse sphere,
+    // inside a closed box that holds an emitter.
+    let camera = r#"{"position": [0, 1, -1.5], "look_at": [0, 0.7, 0], "fov": 60, "width": 16, "height": 16}"#;
+    for (case, obj) in [
+        (
+            "camera inside glass",
+            r#"{"shape": {"type": "sphere", "center": [0, 1, -1.5], "radius": 0.3, "subdivisions": 2}, "material": "glass"}"#,
+        ),
+        (
+            "camera inside a diffuse sphere",
+            r#"{"shape": {"type": "sphere", "center": [0, 1, -1.5], "radius": 0.3, "subdivisions": 2}, "material": "white"}"#,
+        ),
+        (
+            "camera inside a lit box",
+            r#"{"shape": {"type": "cuboid", "min": [-0.5, 0.5, -2], "max": [0.5, 1.5, -1]}, "material": "white"},
+    {"shape": {"type": "sphere", "center": [0.2, 0.8, -1.3], "radius": 0.1, "subdivisions": 1}, "material": "black", "emission": 10}"#,
+        ),
+    ] {
+        all_sane(case, &stage(glass, &format!(",\n    {obj}"), "", Some(camera)), 16);
+    }
+
+    // 1x1 and 64x1 images, and a 0.01 degree field of view.
+    for name in ["cornell-box.json", "mirror-view.json", "sds-point-light.json"] {
+        let s = scene(name, 1, 1);
+        for (integ, i) in all_integrators() {
+            render_checked(&s, i.as_ref(), 256, seed() + 500, &format!("{name} 1x1, {integ}"));
+        }
+    }
+    let wide = r#"{"position": [0, 1, -3], "look_at": [0, 0.7, 0], "fov": 45, "width": 64, "height": 1}"#;
+    all_sane("64x1 image", &stage("", "", "", Some(wide)), 64);
+    let narrow = r#"{"position": [0, 1, -3], "look_at": [0, 0.7, 0], "fov": 0.01, "width": 4, "height": 4}"#;
+    all_sane("fov 0.01 degrees", &stage("", "", "", Some(narrow)), 64);
+}
+
+// ----------------------------------------------------------- self-intersection
+
+/// A lit floor and a small box, everything (camera too) scaled by `k`.
+fn floor_and_box(k: f32) -> Scene {
+    let v = |x: f32, y: f32, z: f32| format!("[{}, {}, {}]", x * k, y * k, z * k);
+    let text = format!(
+        r#"{{
+  "camera": {{"position": {}, "look_at": {}, "fov": 40, "width": 32, "height": 32}},
+  "materials": {{"white": {{"type": "diffuse", "reflectance": 0.7}}, "black": {{"type": "diffuse", "reflectance": 0}}}},
+  "objects": [
+    {{"shape": {{"type": "quad", "corners": [{}, {}, {}, {}]}}, "material": "white"}},
+    {{"shape": {{"type": "cuboid", "min": {}, "max": {}}}, "material": "white"}},
+    {{"shape": {{"type": "quad", "corners": [{}, {}, {}, {}]}}, "material": "black", "emission": 4}}
+  ]
+}}"#,
+        v(0.6, 1.4, -2.2),
+        v(0.0, 0.15, 0.0),
+        v(-1.5, 0.0, -1.5),
+        v(-1.5, 0.0, 1.5),
+        v(1.5, 0.0, 1.5),
+        v(1.5, 0.0, -1.5),
+        v(-0.25, 0.0, -0.2),
+        v(0.15, 0.35, 0.3),
+        v(-0.4, 1.6, -0.9),
+        v(0.6, 1.6, -0.9),
+        v(0.6, 1.6, 0.1),
+        v(-0.4, 1.6, 0.1),
+    );
+    parse_scene(&text, "floor-and-box", Path::new("."))
+        .unwrap_or_else(|e| panic!("{e}"))
+        .build()
+}
+
+#[test]
+fn scale_invariance_self_intersection() {
+    const BLOCK: u32 = 8;
+    let scales = [1e-3f32, 1e5];
+    let integrators = [("path", 16), ("bdpt", 8)];
+    let family = scales.len() * integrators.len();
+    let mut failures = Vec::new();
+    for (name, spp) in integrators {
+        let integ = integrator(name);
+        let reference = floor_and_box(1.0);
+        let base = stats(
+            &passes_checked(&reference, integ.as_ref(), spp, seed() + 600, name),
+            &reference,
+            BLOCK,
+        );
+        for k in scales {
+            let s = floor_and_box(k);
+            let st = stats(
+                &passes_checked(&s, integ.as_ref(), spp, seed() + 700, &format!("{name} x{k}")),
+                &s,
+                BLOCK,
+            );
+            let c = compare_in_family(&st, &base, family);
+            report(&format!("floor and box x{k:e} vs x1, {name}"), &c);
+            if !c.passed {
+                failures.push(format!("{name} x{k:e}: {c}"));
+            }
+        }
+        let c = compare_in_family(
+            &base.scaled(1.05),
+            &stats(
+                &passes_checked(&reference, integ.as_ref(), spp, seed() + 800, name),
+                &reference,
+                BLOCK,
+            ),
+            family,
+        );
+        report(&format!("  negative control {name} x1.05"), &c);
+        assert!(!c.passed, "{name}: a 5% bias went undetected: {c}");
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
