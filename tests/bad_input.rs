@@ -42,8 +42,8 @@ const CASES: &[Case] = &[
         edits: &[("  \"objects\"", TRUNCATE)],
         args: &[],
         out: "out.exr",
-        position: "s.json:4:",
-        words: &["EOF while parsing"],
+        position: "s.json:4:1:",
+        words: &["EOF while parsing a value"],
     },
     Case {
         id: "nan-token",

@@ -769,7 +769,8 @@ pub fn parse_scene(text: &str, file: &str, dir: &Path) -> Result<SceneBuilder, L
         let message = strip_position(&inner.to_string());
         LoadError {
             file: file.to_string(),
-            position: (inner.line() > 0).then(|| (inner.line(), inner.column())),
+            // serde_json counts columns from 0 at the start of a line (e.g. at EOF there).
+            position: (inner.line() > 0).then(|| (inner.line(), inner.column().max(1))),
             field: if field == "." { String::new() } else { field },
             message,
         }
