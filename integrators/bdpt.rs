@@ -49,10 +49,7 @@ pub struct Bdpt {
 
 impl Bdpt {
     pub fn new(o: &IntegratorOptions) -> Self {
-        Self {
-            max_depth: o.max_depth,
-            mis: o.mis,
-        }
+        Self { max_depth: o.max_depth, mis: o.mis }
     }
 }
 
@@ -66,11 +63,7 @@ impl Integrator for Bdpt {
         ws: &mut Workspace,
     ) -> SampledSpectrum {
         let raster = pixel.as_vec2() + sampler.get2d();
-        let Workspace {
-            splats,
-            paths,
-            strategies,
-        } = ws;
+        let Workspace { splats, paths, strategies } = ws;
         camera_subpath(scene, raster, sampler, lambda, self.max_depth, &mut paths.camera);
         light_subpath(scene, sampler, lambda, self.max_depth, &mut paths.light);
         let (camera, light, lambda) = (&paths.camera[..], &paths.light[..], &*lambda);
@@ -91,13 +84,7 @@ impl Integrator for Bdpt {
                 }
                 if let Some(records) = strategies.as_mut() {
                     let raster = c.splat.unwrap_or(raster);
-                    records.push(StrategyRecord {
-                        s: s as u32,
-                        t: t as u32,
-                        raster,
-                        weighted,
-                        unweighted: c.l,
-                    });
+                    records.push(StrategyRecord { s: s as u32, t: t as u32, raster, weighted, unweighted: c.l });
                 }
             }
         }
@@ -136,18 +123,10 @@ fn connect(
     let c = if s == 0 {
         let pt = &camera[t - 1];
         let l = pt.beta * pt.le(scene, &camera[t - 2], lambda);
-        Connection {
-            l,
-            splat: None,
-            sampled: None,
-        }
+        Connection { l, splat: None, sampled: None }
     } else if t == 1 {
         let (splat, cam) = connect_to_camera(scene, &light[s - 1], lambda)?;
-        Connection {
-            l: splat.l,
-            splat: Some(splat.raster),
-            sampled: Some(cam),
-        }
+        Connection { l: splat.l, splat: Some(splat.raster), sampled: Some(cam) }
     } else if s == 1 {
         let pt = &camera[t - 1];
         let (u_light, u) = (sampler.get1d(), sampler.get2d());
@@ -179,11 +158,7 @@ fn connect(
         if !visible {
             return None;
         }
-        Connection {
-            l,
-            splat: None,
-            sampled: Some(q),
-        }
+        Connection { l, splat: None, sampled: Some(q) }
     } else {
         let (qs, pt) = (&light[s - 1], &camera[t - 1]);
         if !qs.is_connectible(scene) || !pt.is_connectible(scene) {
@@ -199,11 +174,7 @@ fn connect(
         if l.is_black() || !scene.unoccluded(qs.p(), qs.si.ng, pt.p(), pt.si.ng) {
             return None;
         }
-        Connection {
-            l,
-            splat: None,
-            sampled: None,
-        }
+        Connection { l, splat: None, sampled: None }
     };
     (!c.l.is_black()).then_some(c)
 }
@@ -236,11 +207,7 @@ pub fn mis_weight(
     lambda: &SampledWavelengths,
 ) -> f32 {
     use TransportMode::{Importance, Radiance};
-    let pt = if t == 1 {
-        sampled.expect("t = 1 has a sampled camera vertex")
-    } else {
-        &camera[t - 1]
-    };
+    let pt = if t == 1 { sampled.expect("t = 1 has a sampled camera vertex") } else { &camera[t - 1] };
     let qs = match s {
         0 => None,
         1 if t > 1 => Some(sampled.expect("s = 1 has a sampled light vertex")),
@@ -295,11 +262,7 @@ pub fn mis_weight(
             v.pdf_rev
         };
         r *= remap0(rev) / remap0(v.pdf_fwd);
-        let delta_prev = if i > 0 {
-            light[i - 1].delta
-        } else {
-            v.is_delta_light(scene)
-        };
+        let delta_prev = if i > 0 { light[i - 1].delta } else { v.is_delta_light(scene) };
         let delta = (i != s - 1 && v.delta) || delta_prev;
         if !delta {
             sum += heuristic.term(r);

@@ -50,11 +50,7 @@ impl Integrator for PathTracer {
         let mut l = SampledSpectrum::ZERO;
         let mut beta = SampledSpectrum::ONE;
         let mut eta_scale = 1.0;
-        let mut prev = PrevVertex {
-            p: ray.o,
-            pdf_bsdf: 0.0,
-            specular: true,
-        };
+        let mut prev = PrevVertex { p: ray.o, pdf_bsdf: 0.0, specular: true };
         for depth in 0.. {
             let Some(si) = scene.intersect(&ray) else {
                 if let Some((i, env)) = scene.environment() {
@@ -87,11 +83,7 @@ impl Integrator for PathTracer {
             if bs.flags.is_transmission() {
                 eta_scale *= bs.eta * bs.eta;
             }
-            prev = PrevVertex {
-                p: si.p,
-                pdf_bsdf: bs.pdf,
-                specular: bs.is_specular(),
-            };
+            prev = PrevVertex { p: si.p, pdf_bsdf: bs.pdf, specular: bs.is_specular() };
             if beta.is_black() || !russian_roulette(&mut beta, eta_scale, depth, sampler.get1d()) {
                 break;
             }
@@ -142,11 +134,8 @@ fn next_event(
     if f.is_black() {
         return SampledSpectrum::ZERO;
     }
-    let visible = if light.is_infinite() {
-        scene.escapes(si.p, si.ng, ls.wi)
-    } else {
-        scene.unoccluded(si.p, si.ng, ls.p, ls.n)
-    };
+    let visible =
+        if light.is_infinite() { scene.escapes(si.p, si.ng, ls.wi) } else { scene.unoccluded(si.p, si.ng, ls.p, ls.n) };
     if !visible {
         return SampledSpectrum::ZERO;
     }

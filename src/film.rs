@@ -67,7 +67,14 @@ impl Film {
     pub fn new(width: u32, height: u32) -> Self {
         // In usize: width * height in u32 wraps for images of 2^32 pixels or more.
         let n = width as usize * height as usize;
-        Self { width, height, pixels: vec![[0.0; 3]; n], splats: vec![[0.0; 3]; n], spp: 0, dropped: DroppedSamples::default() }
+        Self {
+            width,
+            height,
+            pixels: vec![[0.0; 3]; n],
+            splats: vec![[0.0; 3]; n],
+            spp: 0,
+            dropped: DroppedSamples::default(),
+        }
     }
 
     /// The pixel estimates: camera samples averaged over spp, plus splats
@@ -75,11 +82,7 @@ impl Film {
     /// importance is normalised over the whole image, see camera.rs).
     pub fn image(&self) -> Vec<[f32; 3]> {
         let inv = if self.spp == 0 { 0.0 } else { 1.0 / self.spp as f64 };
-        self.pixels
-            .iter()
-            .zip(&self.splats)
-            .map(|(p, s)| [0, 1, 2].map(|c| ((p[c] + s[c]) * inv) as f32))
-            .collect()
+        self.pixels.iter().zip(&self.splats).map(|(p, s)| [0, 1, 2].map(|c| ((p[c] + s[c]) * inv) as f32)).collect()
     }
 }
 
@@ -90,7 +93,9 @@ fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Res
     let name = path.file_name().context("output path has no file name")?.to_string_lossy();
     let ext = path.extension().map(|e| e.to_string_lossy().to_string()).unwrap_or_default();
     let tmp = dir.join(format!(".{name}.{}.tmp.{ext}", std::process::id()));
-    let result = write(&tmp).and_then(|_| std::fs::rename(&tmp, path).with_context(|| format!("cannot move output into {}", path.display())));
+    let result = write(&tmp).and_then(|_| {
+        std::fs::rename(&tmp, path).with_context(|| format!("cannot move output into {}", path.display()))
+    });
     if result.is_err() {
         let _ = std::fs::remove_file(&tmp);
     }
@@ -150,5 +155,7 @@ fn srgb_encode(c: f32) -> f32 {
 /// Writes a JSON document atomically.
 pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
     let text = serde_json::to_string_pretty(value)?;
-    write_atomically(path, |tmp| std::fs::write(tmp, text + "\n").with_context(|| format!("cannot write {}", path.display())))
+    write_atomically(path, |tmp| {
+        std::fs::write(tmp, text + "\n").with_context(|| format!("cannot write {}", path.display()))
+    })
 }

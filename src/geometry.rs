@@ -93,7 +93,8 @@ mod tests {
 
     #[test]
     fn frame_is_orthonormal() {
-        for n in [Vec3A::Z, -Vec3A::Z, Vec3A::new(0.3, -0.5, 0.81).normalize(), Vec3A::new(1.0, 0.0, -1e-8).normalize()] {
+        for n in [Vec3A::Z, -Vec3A::Z, Vec3A::new(0.3, -0.5, 0.81).normalize(), Vec3A::new(1.0, 0.0, -1e-8).normalize()]
+        {
             let f = Frame::from_normal(n);
             assert!(f.s.dot(f.t).abs() < 1e-5 && f.s.dot(f.n).abs() < 1e-5 && f.t.dot(f.n).abs() < 1e-5);
             assert!((f.s.length() - 1.0).abs() < 1e-5 && (f.t.length() - 1.0).abs() < 1e-5);

@@ -238,11 +238,7 @@ impl Light {
         match self {
             Light::Area(a) => {
                 let cos = n.dot(w);
-                let pdf_dir = if a.two_sided {
-                    0.5 * cos.abs() / PI
-                } else {
-                    cos.max(0.0) / PI
-                };
+                let pdf_dir = if a.two_sided { 0.5 * cos.abs() / PI } else { cos.max(0.0) / PI };
                 (1.0 / a.area, pdf_dir)
             }
             Light::Point(_) => (1.0, UNIFORM_SPHERE_PDF),

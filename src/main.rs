@@ -27,10 +27,7 @@ enum Command {
     /// per-block means and standard errors (JSON sidecar) for z-tests.
     Reference(ReferenceArgs),
     /// Compare an image with a reference: relMSE, MSE, mean absolute error.
-    Compare {
-        image: PathBuf,
-        reference: PathBuf,
-    },
+    Compare { image: PathBuf, reference: PathBuf },
     /// Progressive renders against a reference: relMSE vs time and spp per
     /// integrator, charts, efficiency table and report (VALIDATION.md §6).
     Converge(prism::converge::ConvergeArgs),
@@ -212,7 +209,8 @@ fn check_writable(path: &Path) -> Result<()> {
         bail!("cannot write {}: directory {} does not exist", path.display(), dir.display());
     }
     let probe = dir.join(format!(".prism-write-probe-{}", std::process::id()));
-    std::fs::write(&probe, b"").with_context(|| format!("cannot write {}: directory is not writable", path.display()))?;
+    std::fs::write(&probe, b"")
+        .with_context(|| format!("cannot write {}: directory is not writable", path.display()))?;
     let _ = std::fs::remove_file(probe);
     if path.is_dir() {
         bail!("cannot write {}: it is a directory", path.display());
@@ -230,7 +228,8 @@ fn render_command(a: RenderArgs) -> Result<()> {
     }
     let seed = a.seed.or(defaults.seed).unwrap_or(0);
     let max_depth = a.max_depth.or(defaults.max_depth).unwrap_or(IntegratorOptions::default().max_depth);
-    let integrator = integrators::create(&name, &IntegratorOptions { max_depth, mis: a.mis }).map_err(anyhow::Error::msg)?;
+    let integrator =
+        integrators::create(&name, &IntegratorOptions { max_depth, mis: a.mis }).map_err(anyhow::Error::msg)?;
     if let Some(dir) = &a.strategies {
         if name != "bdpt" {
             bail!("--strategies needs --integrator bdpt (got {name})");

@@ -105,43 +105,18 @@ pub struct PathScratch {
 
 impl Vertex {
     fn new(kind: VertexKind, si: SurfaceInteraction, beta: SampledSpectrum, pdf_fwd: f32) -> Self {
-        Self {
-            kind,
-            si,
-            beta,
-            delta: false,
-            pdf_fwd,
-            pdf_rev: 0.0,
-        }
+        Self { kind, si, beta, delta: false, pdf_fwd, pdf_rev: 0.0 }
     }
 
     fn endpoint(kind: VertexKind, p: Vec3A, n: Vec3A, wo: Vec3A, light: Option<u32>) -> SurfaceInteraction {
-        let frame = if n == Vec3A::ZERO {
-            Frame::from_normal(Vec3A::Z)
-        } else {
-            Frame::from_normal(n)
-        };
+        let frame = if n == Vec3A::ZERO { Frame::from_normal(Vec3A::Z) } else { Frame::from_normal(n) };
         debug_assert!(kind != VertexKind::Surface);
-        SurfaceInteraction {
-            p,
-            t: 0.0,
-            ng: n,
-            frame,
-            wo,
-            material: u32::MAX,
-            light,
-        }
+        SurfaceInteraction { p, t: 0.0, ng: n, frame, wo, material: u32::MAX, light }
     }
 
     /// The pinhole as the first camera vertex, with throughput `beta`.
     pub fn camera(scene: &Scene, beta: SampledSpectrum) -> Self {
-        let si = Self::endpoint(
-            VertexKind::Camera,
-            scene.camera.position,
-            Vec3A::ZERO,
-            Vec3A::ZERO,
-            None,
-        );
+        let si = Self::endpoint(VertexKind::Camera, scene.camera.position, Vec3A::ZERO, Vec3A::ZERO, None);
         Self::new(VertexKind::Camera, si, beta, 0.0)
     }
 
@@ -232,11 +207,7 @@ impl Vertex {
         if next.is_infinite() {
             return pdf;
         }
-        let cos = if next.is_on_surface() {
-            next.si.ng.dot(w).abs()
-        } else {
-            1.0
-        };
+        let cos = if next.is_on_surface() { next.si.ng.dot(w).abs() } else { 1.0 };
         pdf * cos * inv_d2
     }
 
@@ -251,12 +222,7 @@ impl Vertex {
         match self.kind {
             VertexKind::Surface => {
                 let bsdf = scene.bsdf(&self.si);
-                let f = bsdf.eval(
-                    self.si.frame.to_local(self.si.wo),
-                    self.si.frame.to_local(wi),
-                    lambda,
-                    mode,
-                );
+                let f = bsdf.eval(self.si.frame.to_local(self.si.wo), self.si.frame.to_local(wi), lambda, mode);
                 match mode {
                     TransportMode::Radiance => f,
                     TransportMode::Importance => f * self.si.shading_correction(self.si.wo, wi),
@@ -421,17 +387,7 @@ pub fn light_subpath(
         (v, v.beta * (cos / le.pdf_dir), le.pdf_dir)
     };
     path.push(origin);
-    random_walk(
-        scene,
-        ray,
-        beta,
-        pdf_walk,
-        sampler,
-        lambda,
-        TransportMode::Importance,
-        max_depth as usize + 1,
-        path,
-    );
+    random_walk(scene, ray, beta, pdf_walk, sampler, lambda, TransportMode::Importance, max_depth as usize + 1, path);
 }
 
 /// Extends `path` (holding the subpath's endpoint) by tracing `ray` and
@@ -526,11 +482,7 @@ pub fn connect_to_camera(scene: &Scene, v: &Vertex, lambda: &SampledWavelengths)
         return None;
     }
     let camera = Vertex::camera(scene, SampledSpectrum::splat(cs.we / cs.pdf_w));
-    let cos = if v.is_on_surface() {
-        cs.wi.dot(v.si.frame.n).abs()
-    } else {
-        1.0
-    };
+    let cos = if v.is_on_surface() { cs.wi.dot(v.si.frame.n).abs() } else { 1.0 };
     let l = v.beta * v.f(scene, &camera, lambda, TransportMode::Importance) * camera.beta * cos;
     if l.is_black() || !scene.unoccluded(v.p(), v.si.ng, camera.p(), Vec3A::ZERO) {
         return None;

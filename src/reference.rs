@@ -96,7 +96,8 @@ pub fn write_reference(out: &Path, image: &[[f32; 3]], meta: &ReferenceMeta) -> 
 pub fn read_reference(exr: &Path) -> Result<(Vec<[f32; 3]>, ReferenceMeta)> {
     let json = exr.with_extension("json");
     let text = std::fs::read_to_string(&json).with_context(|| format!("cannot read {}", json.display()))?;
-    let meta: ReferenceMeta = serde_json::from_str(&text).with_context(|| format!("{}: not a reference sidecar", json.display()))?;
+    let meta: ReferenceMeta =
+        serde_json::from_str(&text).with_context(|| format!("{}: not a reference sidecar", json.display()))?;
     let (w, h, image) = read_exr(exr)?;
     ensure!((w, h) == (meta.width, meta.height), "{}: size {w}x{h} differs from its sidecar", exr.display());
     Ok((image, meta))

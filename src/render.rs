@@ -150,7 +150,13 @@ struct TileOutput {
 }
 
 /// Adds samples `samples` (indices) of every pixel to the film.
-pub fn render(scene: &Scene, integrator: &dyn Integrator, opts: &RenderOptions, film: &mut Film, samples: Range<u32>) -> RenderStats {
+pub fn render(
+    scene: &Scene,
+    integrator: &dyn Integrator,
+    opts: &RenderOptions,
+    film: &mut Film,
+    samples: Range<u32>,
+) -> RenderStats {
     render_impl(scene, integrator, opts, film, samples, None)
 }
 
@@ -165,7 +171,11 @@ pub fn render_with_strategies(
     samples: Range<u32>,
     strategies: &mut StrategyImages,
 ) -> RenderStats {
-    assert_eq!((strategies.width, strategies.height), (film.width, film.height), "strategy images and film differ in size");
+    assert_eq!(
+        (strategies.width, strategies.height),
+        (film.width, film.height),
+        "strategy images and film differ in size"
+    );
     render_impl(scene, integrator, opts, film, samples, Some(strategies))
 }
 
@@ -281,7 +291,9 @@ fn render_tile(
                     let local = (y * size.x + x) as usize;
                     let n = (size.x * size.y) as usize;
                     for r in records {
-                        let (Some(w), Some(u)) = (tile.dropped.admit(r.weighted, &lambda), tile.dropped.admit(r.unweighted, &lambda)) else {
+                        let (Some(w), Some(u)) =
+                            (tile.dropped.admit(r.weighted, &lambda), tile.dropped.admit(r.unweighted, &lambda))
+                        else {
                             continue;
                         };
                         let rgb = [w, u].map(|c| c.to_array().map(f64::from));

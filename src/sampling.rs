@@ -61,11 +61,8 @@ pub fn concentric_disk(u: Vec2) -> Vec2 {
     if o == Vec2::ZERO {
         return Vec2::ZERO;
     }
-    let (r, theta) = if o.x.abs() > o.y.abs() {
-        (o.x, PI / 4.0 * (o.y / o.x))
-    } else {
-        (o.y, PI / 2.0 - PI / 4.0 * (o.x / o.y))
-    };
+    let (r, theta) =
+        if o.x.abs() > o.y.abs() { (o.x, PI / 4.0 * (o.y / o.x)) } else { (o.y, PI / 2.0 - PI / 4.0 * (o.x / o.y)) };
     r * Vec2::new(theta.cos(), theta.sin())
 }
 
@@ -131,10 +128,8 @@ impl AliasTable {
             return None;
         }
         let n = weights.len();
-        let mut bins: Vec<AliasBin> = weights
-            .iter()
-            .map(|&w| AliasBin { q: 0.0, pmf: (w.max(0.0) as f64 / sum) as f32, alias: 0 })
-            .collect();
+        let mut bins: Vec<AliasBin> =
+            weights.iter().map(|&w| AliasBin { q: 0.0, pmf: (w.max(0.0) as f64 / sum) as f32, alias: 0 }).collect();
         let mut p: Vec<f64> = weights.iter().map(|&w| w.max(0.0) as f64 / sum * n as f64).collect();
         let (mut under, mut over): (Vec<usize>, Vec<usize>) = (0..n).partition(|&i| p[i] < 1.0);
         while let (Some(&u), Some(&o)) = (under.last(), over.last()) {

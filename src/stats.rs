@@ -15,7 +15,14 @@ pub type Image = Vec<[f32; 3]>;
 
 /// Renders `k` independent passes of `spp` samples each (pass i uses seed
 /// `seed + i`).
-pub fn render_passes(scene: &Scene, integrator: &dyn Integrator, spp: u32, k: u32, seed: u64, threads: usize) -> Vec<Image> {
+pub fn render_passes(
+    scene: &Scene,
+    integrator: &dyn Integrator,
+    spp: u32,
+    k: u32,
+    seed: u64,
+    threads: usize,
+) -> Vec<Image> {
     (0..k)
         .map(|i| {
             let mut film = Film::new(scene.camera.width, scene.camera.height);
@@ -169,11 +176,8 @@ fn compare_with(a: &BlockStats, family: usize, reference: impl Fn(usize) -> ([f6
     let t = StudentsT::new(0.0, 1.0, (a.k - 1) as f64).expect("Student t");
     let threshold = t.inverse_cdf(1.0 - alpha / 2.0);
     let chi2_alpha = ALPHA / family as f64;
-    let chi2_p = if sum_z2.is_finite() {
-        1.0 - ChiSquared::new(n as f64).expect("chi-square").cdf(sum_z2)
-    } else {
-        0.0
-    };
+    let chi2_p =
+        if sum_z2.is_finite() { 1.0 - ChiSquared::new(n as f64).expect("chi-square").cdf(sum_z2) } else { 0.0 };
     let passed = worst.0 <= threshold && chi2_p >= chi2_alpha;
     Comparison { n, worst_z: worst.0, worst_at: worst.1, threshold, sum_z2, chi2_p, passed }
 }

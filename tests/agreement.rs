@@ -30,7 +30,12 @@ fn stats(scene_file: &str, integrator: &str, max_depth: u32, seed: u64) -> Block
     let s = scene(scene_file, RES, RES);
     let integ = integrators::create(integrator, &IntegratorOptions { max_depth, ..Default::default() }).unwrap();
     assert!(integ.unsamplable(&s).is_empty(), "{integrator} cannot sample {scene_file}: {:?}", integ.unsamplable(&s));
-    BlockStats::from_passes(&render_passes(&s, integ.as_ref(), spp_for(scene_file, integrator), K, seed, 0), RES, RES, BLOCK)
+    BlockStats::from_passes(
+        &render_passes(&s, integ.as_ref(), spp_for(scene_file, integrator), K, seed, 0),
+        RES,
+        RES,
+        BLOCK,
+    )
 }
 
 fn reference(scene_file: &str) -> BlockStats {
@@ -43,7 +48,8 @@ fn reference(scene_file: &str) -> BlockStats {
 /// Every integrator against the reference and against every other one.
 fn matrix(scene_file: &str) {
     let reference = reference(scene_file);
-    let all: Vec<(&str, BlockStats)> = INTEGRATORS.iter().map(|i| (i.name, stats(scene_file, i.name, 1024, 40))).collect();
+    let all: Vec<(&str, BlockStats)> =
+        INTEGRATORS.iter().map(|i| (i.name, stats(scene_file, i.name, 1024, 40))).collect();
     let n = all.len();
     let family = n + n * (n - 1) / 2;
     let mut failures = Vec::new();

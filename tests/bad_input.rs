@@ -135,7 +135,10 @@ const CASES: &[Case] = &[
     },
     Case {
         id: "missing-mesh",
-        edits: &[("{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1}", "{\"type\": \"obj\", \"file\": \"nope.obj\"}")],
+        edits: &[(
+            "{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1}",
+            "{\"type\": \"obj\", \"file\": \"nope.obj\"}",
+        )],
         args: &[],
         out: "out.exr",
         position: "s.json:4:",
@@ -143,7 +146,10 @@ const CASES: &[Case] = &[
     },
     Case {
         id: "mesh-not-a-file",
-        edits: &[("{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1}", "{\"type\": \"obj\", \"file\": \".\"}")],
+        edits: &[(
+            "{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1}",
+            "{\"type\": \"obj\", \"file\": \".\"}",
+        )],
         args: &[],
         out: "out.exr",
         position: "s.json:4:",
@@ -226,7 +232,14 @@ const CASES: &[Case] = &[
         position: "",
         words: &["unexpected argument '-1' found"],
     },
-    Case { id: "zero-spp-flag", edits: &[], args: &["--spp", "0"], out: "out.exr", position: "", words: &["--spp must be at least 1"] },
+    Case {
+        id: "zero-spp-flag",
+        edits: &[],
+        args: &["--spp", "0"],
+        out: "out.exr",
+        position: "",
+        words: &["--spp must be at least 1"],
+    },
     Case {
         id: "output-not-writable",
         edits: &[],
@@ -321,7 +334,9 @@ fn run(case: &Case) -> Result<(), String> {
         }
     }
     if keep {
-        if std::fs::read(&out).ok().as_deref() != Some(PREVIOUS) || std::fs::read(&sidecar).ok().as_deref() != Some(PREVIOUS) {
+        if std::fs::read(&out).ok().as_deref() != Some(PREVIOUS)
+            || std::fs::read(&sidecar).ok().as_deref() != Some(PREVIOUS)
+        {
             problems.push("the existing output or sidecar changed".to_string());
         }
     } else if case.out != "taken.exr" && out.exists() {

@@ -38,10 +38,21 @@ fn renders_exr_png_and_sidecar() {
     let scene = write(&d, "s.json", GOOD);
     let out = d.join("img.exr");
     let png = d.join("img.png");
-    let o = prism(&["render", &scene, "--spp", "2", "--out", out.to_str().unwrap(), "--png", png.to_str().unwrap(), "--quiet"]);
+    let o = prism(&[
+        "render",
+        &scene,
+        "--spp",
+        "2",
+        "--out",
+        out.to_str().unwrap(),
+        "--png",
+        png.to_str().unwrap(),
+        "--quiet",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(out.exists() && png.exists());
-    let sidecar: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join("img.json")).unwrap()).unwrap();
+    let sidecar: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("img.json")).unwrap()).unwrap();
     assert_eq!(sidecar["spp"], 2);
     assert_eq!(sidecar["integrator"], "path");
     assert!(sidecar["rays"].as_u64().unwrap() > 0);
@@ -75,8 +86,16 @@ fn bad_scenes_name_file_line_and_field() {
         // (scene text, expected position, expected words)
         ("{\n  \"camera\": {\"position\": [0, 0, -3],,}\n}", ":2:", "camera: key must be a string"),
         (&GOOD.replace("\"fov\": 40", "\"fov\": \"wide\""), ":2:", "camera.fov"),
-        (&GOOD.replace("\"material\": \"white\"", "\"material\": \"whte\""), ":4:", "objects[0].material: unknown material \"whte\""),
-        (&GOOD.replace("\"reflectance\": 0.5", "\"reflectance\": \"nosuch\""), ":3:", "materials.white.reflectance: unknown spectrum \"nosuch\""),
+        (
+            &GOOD.replace("\"material\": \"white\"", "\"material\": \"whte\""),
+            ":4:",
+            "objects[0].material: unknown material \"whte\"",
+        ),
+        (
+            &GOOD.replace("\"reflectance\": 0.5", "\"reflectance\": \"nosuch\""),
+            ":3:",
+            "materials.white.reflectance: unknown spectrum \"nosuch\"",
+        ),
         (&GOOD.replace("\"reflectance\": 0.5", "\"reflectanse\": 0.5"), ":3:", "unknown field `reflectanse`"),
         (&GOOD.replace("\"radius\": 1", "\"radius\": 1e999"), ":4:", "objects[0].shape"),
         (&GOOD.replace("\"radius\": 1", "\"radius\": -1"), ":4:", "objects[0].shape.radius"),

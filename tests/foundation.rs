@@ -67,7 +67,13 @@ fn renders_are_bit_identical_across_thread_counts() {
             .iter()
             .map(|&threads| {
                 let mut film = Film::new(48, 40);
-                render(&s, integrator(name).as_ref(), &RenderOptions { seed: 7, threads, progress: false }, &mut film, 0..4);
+                render(
+                    &s,
+                    integrator(name).as_ref(),
+                    &RenderOptions { seed: 7, threads, progress: false },
+                    &mut film,
+                    0..4,
+                );
                 film.image()
             })
             .collect();

@@ -83,23 +83,8 @@ const SWAPS: &[&str] = &[
 ];
 
 /// Fragments inserted anywhere.
-const INSERTS: &[&str] = &[
-    "{",
-    "}",
-    "[",
-    "]",
-    ",",
-    ":",
-    "\"",
-    "\\",
-    "\\u0000",
-    "\u{e9}",
-    "\u{1F600}",
-    "\n",
-    "/*",
-    "\0",
-    "0",
-];
+const INSERTS: &[&str] =
+    &["{", "}", "[", "]", ",", ":", "\"", "\\", "\\u0000", "\u{e9}", "\u{1F600}", "\n", "/*", "\0", "0"];
 
 fn manifest() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -176,10 +161,7 @@ fn seeds() -> &'static [(String, String)] {
             .collect();
         files.sort();
         for f in files {
-            v.push((
-                f.file_name().unwrap().to_string_lossy().to_string(),
-                std::fs::read_to_string(&f).unwrap(),
-            ));
+            v.push((f.file_name().unwrap().to_string_lossy().to_string(), std::fs::read_to_string(&f).unwrap()));
         }
         v
     })
@@ -341,12 +323,7 @@ fn apply(text: String, m: &Mutation) -> String {
         }
         Mutation::Truncate(at) => text[..boundary(&text, at)].to_string(),
         Mutation::ReplaceNumber(at, k) => match pick(&numbers(&text), at) {
-            Some((s, e)) => format!(
-                "{}{}{}",
-                &text[..s],
-                HOSTILE_NUMBERS[k % HOSTILE_NUMBERS.len()],
-                &text[e..]
-            ),
+            Some((s, e)) => format!("{}{}{}", &text[..s], HOSTILE_NUMBERS[k % HOSTILE_NUMBERS.len()], &text[e..]),
             None => text,
         },
         Mutation::DeleteMember(at) => match pick(&members(&text), at) {
@@ -395,25 +372,15 @@ fn mutation() -> impl Strategy<Value = Mutation> {
 /// Cases for the random test; PRISM_FUZZ_CASES overrides (e.g. 100000 for a
 /// long local run).
 fn cases() -> u32 {
-    std::env::var("PRISM_FUZZ_CASES")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(3000)
+    std::env::var("PRISM_FUZZ_CASES").ok().and_then(|s| s.parse().ok()).unwrap_or(3000)
 }
 
 #[test]
 fn seed_scenes_load() {
     for (name, text) in seeds() {
-        assert!(
-            parse_scene(text, name, &manifest().join("scenes")).is_ok() || name == "features.json",
-            "{name}"
-        );
+        assert!(parse_scene(text, name, &manifest().join("scenes")).is_ok() || name == "features.json", "{name}");
     }
-    assert!(
-        load(FEATURES),
-        "{}",
-        parse_scene(FEATURES, "features.json", mesh_dir()).err().unwrap()
-    );
+    assert!(load(FEATURES), "{}", parse_scene(FEATURES, "features.json", mesh_dir()).err().unwrap());
 }
 
 /// Every number of the feature scene replaced by every hostile token, one at
@@ -439,10 +406,7 @@ fn every_single_edit_of_the_feature_scene() {
         }
     }
     eprintln!("single edits: {ok} loaded, {err} refused");
-    assert!(
-        ok > 100 && err > 100,
-        "the sweep should exercise both outcomes: {ok} ok, {err} errors"
-    );
+    assert!(ok > 100 && err > 100, "the sweep should exercise both outcomes: {ok} ok, {err} errors");
 }
 
 proptest! {

@@ -31,10 +31,7 @@ fn max_abs_diff(a: [f32; 3], b: [f32; 3]) -> f32 {
 }
 
 fn seed(default: u64) -> u64 {
-    std::env::var("PRISM_TEST_SEED")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(default)
+    std::env::var("PRISM_TEST_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(default)
 }
 
 /// Uniform in [0, 1) from the top 24 bits.
@@ -47,10 +44,7 @@ fn uniform(rng: &mut Xoshiro256PlusPlus) -> f32 {
 #[test]
 fn equal_energy_spectrum_is_white_point_e() {
     let (x, y) = chromaticity(spectrum_to_xyz(&Spectrum::Constant(1.0)));
-    assert!(
-        (x - 1.0 / 3.0).abs() < 1e-3 && (y - 1.0 / 3.0).abs() < 1e-3,
-        "({x}, {y})"
-    );
+    assert!((x - 1.0 / 3.0).abs() < 1e-3 && (y - 1.0 / 3.0).abs() < 1e-3, "({x}, {y})");
 }
 
 #[test]
@@ -59,10 +53,7 @@ fn d65_has_its_chromaticity_unit_luminance_and_is_srgb_white() {
     assert!((d65.luminance() - 1.0).abs() < 1e-5, "{}", d65.luminance());
     let xyz = spectrum_to_xyz(&d65);
     let (x, y) = chromaticity(xyz);
-    assert!(
-        (x - 0.3127).abs() < 1e-3 && (y - 0.3290).abs() < 1e-3,
-        "({x}, {y})"
-    );
+    assert!((x - 0.3127).abs() < 1e-3 && (y - 0.3290).abs() < 1e-3, "({x}, {y})");
     let rgb = xyz_to_linear_srgb(xyz);
     assert!((rgb - Vec3::ONE).abs().max_element() < 1e-2, "{rgb}");
 }
@@ -71,20 +62,13 @@ fn d65_has_its_chromaticity_unit_luminance_and_is_srgb_white() {
 fn every_illuminant_has_unit_luminance() {
     for name in ILLUMINANT_NAMES {
         let s = illuminant(name).unwrap();
-        assert!(
-            (s.luminance() - 1.0).abs() < 1e-5,
-            "{name}: {}",
-            s.luminance()
-        );
+        assert!((s.luminance() - 1.0).abs() < 1e-5, "{name}: {}", s.luminance());
     }
     // Illuminant A is a 2856 K Planckian radiator.
     let a = spectrum_to_xyz(&illuminant("A").unwrap());
     let bb = spectrum_to_xyz(&blackbody(2856.0));
     let ((xa, ya), (xb, yb)) = (chromaticity(a), chromaticity(bb));
-    assert!(
-        (xa - xb).abs() < 2e-3 && (ya - yb).abs() < 2e-3,
-        "A ({xa}, {ya}) vs ({xb}, {yb})"
-    );
+    assert!((xa - xb).abs() < 2e-3 && (ya - yb).abs() < 2e-3, "A ({xa}, {ya}) vs ({xb}, {yb})");
 }
 
 // ------------------------------------------------------------ RGB upsampling
@@ -92,10 +76,7 @@ fn every_illuminant_has_unit_luminance() {
 /// Checks one colour: bounded spectrum, round trip within 1e-3.
 fn check_albedo(rgb: [f32; 3], d65: &Spectrum) -> f32 {
     let s = rgb_albedo(rgb);
-    assert!(
-        s.min_value() >= 0.0 && s.max_value() <= 1.0,
-        "{rgb:?}: out of [0, 1]"
-    );
+    assert!(s.min_value() >= 0.0 && s.max_value() <= 1.0, "{rgb:?}: out of [0, 1]");
     let e = max_abs_diff(reflectance_rgb(&s, d65), rgb);
     assert!(e < 1e-3, "{rgb:?}: round trip error {e}");
     e
@@ -169,12 +150,7 @@ fn rgb_albedo_special_cases() {
     assert!(max_abs_diff(clamped, [1.0, 0.3, 0.0]) < 1e-3, "{clamped:?}");
     // Near-greys are nearly flat.
     let s = rgb_albedo([0.5, 0.5, 0.5001]);
-    assert!(
-        s.min_value() > 0.499 && s.max_value() < 0.501,
-        "{} {}",
-        s.min_value(),
-        s.max_value()
-    );
+    assert!(s.min_value() > 0.499 && s.max_value() < 0.501, "{} {}", s.min_value(), s.max_value());
 }
 
 #[test]
@@ -182,12 +158,7 @@ fn rgb_illuminant_has_the_colour_it_is_given() {
     let d65 = d65();
     assert_eq!(rgb_illuminant([1.0; 3]), d65);
     assert_eq!(rgb_illuminant([0.0; 3]), Spectrum::Constant(0.0));
-    for rgb in [
-        [3.0, 1.0, 0.5],
-        [0.2, 0.9, 0.4],
-        [0.01, 0.0, 0.05],
-        [10.0, 10.0, 10.0],
-    ] {
+    for rgb in [[3.0, 1.0, 0.5], [0.2, 0.9, 0.4], [0.01, 0.0, 0.05], [10.0, 10.0, 10.0]] {
         let e = rgb_illuminant(rgb);
         let seen = xyz_to_linear_srgb(spectrum_to_xyz(&e)).to_array();
         let m = rgb[0].max(rgb[1]).max(rgb[2]);
@@ -284,11 +255,7 @@ fn z_test(spectra: &[Spectrum], seed: u64, estimate: impl Fn(&Spectrum, f32) -> 
             .collect();
         let k = BATCHES as f64;
         let mean = means.iter().sum::<glam::DVec3>() / k;
-        let var = means
-            .iter()
-            .map(|m| (*m - mean) * (*m - mean))
-            .sum::<glam::DVec3>()
-            / (k - 1.0);
+        let var = means.iter().map(|m| (*m - mean) * (*m - mean)).sum::<glam::DVec3>() / (k - 1.0);
         let se = (var / k).to_array().map(f64::sqrt);
         for c in 0..3 {
             zs.push((mean[c] - exact[c]) / se[c]);
@@ -310,11 +277,7 @@ fn z_test(spectra: &[Spectrum], seed: u64, estimate: impl Fn(&Spectrum, f32) -> 
 
 /// A smooth spectrum (blackbody) and a spiky one (F11) of unit luminance.
 fn test_spectra() -> Vec<Spectrum> {
-    vec![
-        blackbody(4500.0),
-        illuminant("F11").unwrap(),
-        illuminant("D65").unwrap(),
-    ]
+    vec![blackbody(4500.0), illuminant("F11").unwrap(), illuminant("D65").unwrap()]
 }
 
 fn hero_estimate(s: &Spectrum, u: f32) -> Vec3 {
@@ -325,25 +288,13 @@ fn hero_estimate(s: &Spectrum, u: f32) -> Vec3 {
 #[test]
 fn hero_wavelength_xyz_estimate_is_unbiased() {
     let r = z_test(&test_spectra(), seed(1), hero_estimate);
-    assert!(
-        r.passes(),
-        "|z| {} (limit {}), sum z^2 {} (limit {})",
-        r.max_abs_z,
-        r.threshold,
-        r.sum_z2,
-        r.chi2_limit
-    );
+    assert!(r.passes(), "|z| {} (limit {}), sum z^2 {} (limit {})", r.max_abs_z, r.threshold, r.sum_z2, r.chi2_limit);
 }
 
 #[test]
 fn hero_wavelength_test_detects_a_two_percent_bias() {
     let r = z_test(&test_spectra(), seed(2), |s, u| hero_estimate(s, u) * 1.02);
-    assert!(
-        !r.passes(),
-        "a 2% bias went unnoticed: |z| {} (limit {})",
-        r.max_abs_z,
-        r.threshold
-    );
+    assert!(!r.passes(), "a 2% bias went unnoticed: |z| {} (limit {})", r.max_abs_z, r.threshold);
 }
 
 #[test]
@@ -354,12 +305,7 @@ fn hero_wavelength_test_detects_the_wrong_pdf() {
         lambda.pdf = glam::Vec4::splat(1.0 / 470.0);
         to_xyz(s.sample(&lambda), &lambda)
     });
-    assert!(
-        !r.passes(),
-        "a wrong pdf went unnoticed: |z| {} (limit {})",
-        r.max_abs_z,
-        r.threshold
-    );
+    assert!(!r.passes(), "a wrong pdf went unnoticed: |z| {} (limit {})", r.max_abs_z, r.threshold);
 }
 
 #[test]
@@ -370,14 +316,7 @@ fn hero_only_after_terminate_secondary_is_unbiased() {
         to_xyz(s.sample(&lambda), &lambda)
     };
     let r = z_test(&test_spectra(), seed(4), estimate);
-    assert!(
-        r.passes(),
-        "|z| {} (limit {}), sum z^2 {} (limit {})",
-        r.max_abs_z,
-        r.threshold,
-        r.sum_z2,
-        r.chi2_limit
-    );
+    assert!(r.passes(), "|z| {} (limit {}), sum z^2 {} (limit {})", r.max_abs_z, r.threshold, r.sum_z2, r.chi2_limit);
     // Negative control: forgetting the factor 4 of the hero's pdf.
     let forgot = |s: &Spectrum, u: f32| {
         let mut lambda = SampledWavelengths::sample_visible(u);
@@ -393,26 +332,15 @@ fn hero_only_after_terminate_secondary_is_unbiased() {
 // Schott's N-BK7 Sellmeier coefficients, as published (C in um^2).
 const NBK7_B_PUBLISHED: [f64; 3] = [1.03961212, 0.231792344, 1.01046945];
 const NBK7_C_PUBLISHED: [f64; 3] = [0.00600069867, 0.0200179144, 103.560653];
-const NBK7_B: [f32; 3] = [
-    NBK7_B_PUBLISHED[0] as f32,
-    NBK7_B_PUBLISHED[1] as f32,
-    NBK7_B_PUBLISHED[2] as f32,
-];
-const NBK7_C: [f32; 3] = [
-    NBK7_C_PUBLISHED[0] as f32,
-    NBK7_C_PUBLISHED[1] as f32,
-    NBK7_C_PUBLISHED[2] as f32,
-];
+const NBK7_B: [f32; 3] = [NBK7_B_PUBLISHED[0] as f32, NBK7_B_PUBLISHED[1] as f32, NBK7_B_PUBLISHED[2] as f32];
+const NBK7_C: [f32; 3] = [NBK7_C_PUBLISHED[0] as f32, NBK7_C_PUBLISHED[1] as f32, NBK7_C_PUBLISHED[2] as f32];
 
 #[test]
 fn sellmeier_nbk7_gives_the_d_line_index() {
     let n = sellmeier_ior(NBK7_B, NBK7_C, 587.6);
     assert!((n - 1.5168).abs() < 1e-4, "{n}");
     // The 1 nm table holds the formula at integer wavelengths.
-    assert_eq!(
-        sellmeier(NBK7_B, NBK7_C).eval(588.0),
-        sellmeier_ior(NBK7_B, NBK7_C, 588.0)
-    );
+    assert_eq!(sellmeier(NBK7_B, NBK7_C).eval(588.0), sellmeier_ior(NBK7_B, NBK7_C, 588.0));
 }
 
 #[test]
@@ -428,8 +356,7 @@ fn tabulated_bk7_agrees_with_sellmeier() {
 #[test]
 fn gold_at_550_nm_matches_its_table() {
     // Interpolated here from the data file, independently of named.rs.
-    let json: serde_json::Value =
-        serde_json::from_str(include_str!("../src/spectrum/data/metals.json")).unwrap();
+    let json: serde_json::Value = serde_json::from_str(include_str!("../src/spectrum/data/metals.json")).unwrap();
     let at = |key: &str| {
         let t = &json["Au"][key];
         let w: Vec<f64> = serde_json::from_value(t["wavelengths_nm"].clone()).unwrap();
@@ -438,18 +365,8 @@ fn gold_at_550_nm_matches_its_table() {
         v[i] + (550.0 - w[i]) / (w[i + 1] - w[i]) * (v[i + 1] - v[i])
     };
     let (eta, k) = metal_eta_k("Au").unwrap();
-    assert!(
-        (eta.eval(550.0) as f64 - at("eta")).abs() < 1e-5,
-        "{} {}",
-        eta.eval(550.0),
-        at("eta")
-    );
-    assert!(
-        (k.eval(550.0) as f64 - at("k")).abs() < 1e-5,
-        "{} {}",
-        k.eval(550.0),
-        at("k")
-    );
+    assert!((eta.eval(550.0) as f64 - at("eta")).abs() < 1e-5, "{} {}", eta.eval(550.0), at("eta"));
+    assert!((k.eval(550.0) as f64 - at("k")).abs() < 1e-5, "{} {}", k.eval(550.0), at("k"));
     // pbrt-v4's gold: eta ~ 0.35, k ~ 2.7 at 550 nm.
     assert!((eta.eval(550.0) - 0.35).abs() < 0.02 && (k.eval(550.0) - 2.71).abs() < 0.02);
 }
@@ -461,14 +378,9 @@ fn blackbody_peak_follows_wien_displacement() {
     for t in (3500..=8000).step_by(250) {
         let t = t as f32;
         let s = blackbody(t);
-        let peak = (360..=830)
-            .max_by(|&a, &b| s.eval(a as f32).total_cmp(&s.eval(b as f32)))
-            .unwrap() as f32;
+        let peak = (360..=830).max_by(|&a, &b| s.eval(a as f32).total_cmp(&s.eval(b as f32))).unwrap() as f32;
         let wien = (2.8977719e6 / t as f64) as f32;
-        assert!(
-            (peak - wien).abs() <= 1.0,
-            "{t} K: peak {peak} nm, Wien {wien} nm"
-        );
+        assert!((peak - wien).abs() <= 1.0, "{t} K: peak {peak} nm, Wien {wien} nm");
     }
 }
 

@@ -6,9 +6,9 @@
 mod scenes;
 
 use prism::integrators::{self, IntegratorOptions, INTEGRATORS};
+use prism::scene::Scene;
 use prism::spectrum::Spectrum;
 use prism::stats::{compare_to_value, render_passes, BlockStats, Comparison};
-use prism::scene::Scene;
 use scenes::{scene, scene_variant, srgb_of};
 
 const K: u32 = 16;

@@ -42,12 +42,8 @@ use std::path::{Path, PathBuf};
 
 /// Extensions whose data the loader reads; others are ignored with a
 /// warning, or refused when the file requires them.
-pub const SUPPORTED_EXTENSIONS: &[&str] = &[
-    "KHR_lights_punctual",
-    "KHR_materials_emissive_strength",
-    "KHR_materials_ior",
-    "KHR_materials_transmission",
-];
+pub const SUPPORTED_EXTENSIONS: &[&str] =
+    &["KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_ior", "KHR_materials_transmission"];
 
 /// Image height for a glTF camera (glTF has no resolution; `prism render
 /// --width/--height` override it); the width follows the aspect ratio, else
@@ -253,7 +249,9 @@ impl Importer {
         for buffer in imp.doc.buffers() {
             let what = format!("buffers[{}]", buffer.index());
             let mut data = match buffer.source() {
-                gltf::buffer::Source::Bin => blob.take().ok_or_else(|| fail(&what, "the GLB has no binary chunk".into()))?,
+                gltf::buffer::Source::Bin => {
+                    blob.take().ok_or_else(|| fail(&what, "the GLB has no binary chunk".into()))?
+                }
                 gltf::buffer::Source::Uri(uri) => imp.read_uri(uri).map_err(|m| fail(&what, m))?,
             };
             if data.len() < buffer.length() {
@@ -447,7 +445,8 @@ impl Importer {
                 let buffers = &self.buffers;
                 let reader = prim.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
                 let positions: Option<Vec<Vec3A>> = reader.read_positions().map(|p| p.map(Vec3A::from_array).collect());
-                let normals: Vec<Vec3A> = reader.read_normals().map_or_else(Vec::new, |n| n.map(Vec3A::from_array).collect());
+                let normals: Vec<Vec3A> =
+                    reader.read_normals().map_or_else(Vec::new, |n| n.map(Vec3A::from_array).collect());
                 let list: Option<Vec<u32>> = reader.read_indices().map(|i| i.into_u32().collect());
                 (positions, normals, list)
             };
@@ -574,7 +573,10 @@ impl Importer {
         }
         if transmission > 0.0 && transmission < 1.0 {
             let choice = if transmission >= 0.5 { "a dielectric" } else { "diffuse" };
-            self.warn(label, format!("transmission {transmission} is neither 0 nor 1: rendered {choice} (threshold 0.5)"));
+            self.warn(
+                label,
+                format!("transmission {transmission} is neither 0 nor 1: rendered {choice} (threshold 0.5)"),
+            );
         }
         if transmission >= 0.5 {
             let mut ior = m.ior().unwrap_or(1.5);
@@ -779,9 +781,9 @@ fn label(kind: &str, index: usize, name: Option<&str>) -> String {
 /// is (i, i + 1 + i % 2, i + 2 - i % 2), a fan's is (i + 1, i + 2, 0).
 fn triangulate(mode: Mode, list: &[u32]) -> Vec<[u32; 3]> {
     match mode {
-        Mode::TriangleStrip => (0..list.len().saturating_sub(2))
-            .map(|i| [list[i], list[i + 1 + i % 2], list[i + 2 - i % 2]])
-            .collect(),
+        Mode::TriangleStrip => {
+            (0..list.len().saturating_sub(2)).map(|i| [list[i], list[i + 1 + i % 2], list[i + 2 - i % 2]]).collect()
+        }
         Mode::TriangleFan => (0..list.len().saturating_sub(2)).map(|i| [list[i + 1], list[i + 2], list[0]]).collect(),
         _ => list.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
     }
@@ -827,7 +829,8 @@ fn default_camera(meshes: &[ImportedMesh]) -> Camera {
             hi = hi.max(p);
         }
     }
-    let (center, radius) = if lo.cmple(hi).all() { ((lo + hi) * 0.5, (hi - lo).length() * 0.5) } else { (Vec3A::ZERO, 1.0) };
+    let (center, radius) =
+        if lo.cmple(hi).all() { ((lo + hi) * 0.5, (hi - lo).length() * 0.5) } else { (Vec3A::ZERO, 1.0) };
     let radius = if radius > 0.0 { radius } else { 1.0 };
     let elevation = DEFAULT_ELEVATION_DEG.to_radians();
     let dir = Vec3A::new(0.0, elevation.sin(), elevation.cos());

@@ -7,7 +7,7 @@
 //! `scenes/x.json:14:9: materials.glass.ior: unknown glass "BK8" (known: ...)`.
 
 use super::locate::{locate, path_string, Seg};
-use super::{SceneBuilder, RenderDefaults};
+use super::{RenderDefaults, SceneBuilder};
 use crate::camera::Camera;
 use crate::materials::{roughness_to_alpha, Bsdf, Conductor, Dielectric, Diffuse, Mirror};
 use crate::shapes::Mesh;
@@ -349,7 +349,8 @@ impl<'de> Deserialize<'de> for SpectrumSpec {
 
 fn spectrum_from_value(v: &serde_json::Value) -> Result<SpectrumSpec, String> {
     use serde_json::Value;
-    let num = |v: &Value, what: &str| v.as_f64().map(|x| x as f32).ok_or_else(|| format!("\"{what}\" must be a number"));
+    let num =
+        |v: &Value, what: &str| v.as_f64().map(|x| x as f32).ok_or_else(|| format!("\"{what}\" must be a number"));
     let arr = |v: &Value, what: &str| -> Result<Vec<f32>, String> {
         v.as_array()
             .and_then(|a| a.iter().map(|x| x.as_f64().map(|x| x as f32)).collect::<Option<Vec<f32>>>())
@@ -574,7 +575,10 @@ impl Ctx<'_> {
             MaterialSpec::Conductor(c) => {
                 let (eta, k) = match (&c.metal, &c.eta, &c.k) {
                     (Some(name), None, None) => spectrum::metal_eta_k(name).ok_or_else(|| {
-                        self.err(&at("metal"), format!("unknown metal \"{name}\" (known: {})", spectrum::METAL_NAMES.join(", ")))
+                        self.err(
+                            &at("metal"),
+                            format!("unknown metal \"{name}\" (known: {})", spectrum::METAL_NAMES.join(", ")),
+                        )
                     })?,
                     (None, Some(eta), Some(k)) => {
                         (self.spectrum(&at("eta"), eta, Use::Ior)?, self.spectrum(&at("k"), k, Use::Other)?)
@@ -608,7 +612,9 @@ impl Ctx<'_> {
             (Some(r), None, None, None) => ("roughness", (roughness_to_alpha(r), roughness_to_alpha(r))),
             (None, Some(a), None, None) => ("alpha", (a, a)),
             (None, None, Some(x), Some(y)) => ("alpha_x", (x, y)),
-            _ => return Err(self.err(path, "give one of \"roughness\", \"alpha\", or both \"alpha_x\" and \"alpha_y\"")),
+            _ => {
+                return Err(self.err(path, "give one of \"roughness\", \"alpha\", or both \"alpha_x\" and \"alpha_y\""))
+            }
         };
         let at = with(path, field);
         for v in [roughness, alpha, alpha_x, alpha_y].into_iter().flatten() {
@@ -662,13 +668,16 @@ impl Ctx<'_> {
     }
 
     fn inline_mesh(&self, path: &[Seg], m: &InlineMeshSpec) -> Result<Mesh, LoadError> {
-        let positions = m.positions.iter().map(|p| self.vec3(&with(path, "positions"), *p)).collect::<Result<Vec<_>, _>>()?;
+        let positions =
+            m.positions.iter().map(|p| self.vec3(&with(path, "positions"), *p)).collect::<Result<Vec<_>, _>>()?;
         let normals = m.normals.iter().map(|n| self.vec3(&with(path, "normals"), *n)).collect::<Result<Vec<_>, _>>()?;
         if !normals.is_empty() && normals.len() != positions.len() {
             return Err(self.err(&with(path, "normals"), "needs one normal per position"));
         }
         if let Some(i) = m.indices.iter().flatten().find(|&&i| i as usize >= positions.len()) {
-            return Err(self.err(&with(path, "indices"), format!("index {i} is out of range ({} positions)", positions.len())));
+            return Err(
+                self.err(&with(path, "indices"), format!("index {i} is out of range ({} positions)", positions.len()))
+            );
         }
         Ok(Mesh { positions, normals, indices: m.indices.clone() })
     }
@@ -681,7 +690,8 @@ impl Ctx<'_> {
             return Err(self.err(path, format!("cannot read mesh {}: {why}", full.display())));
         }
         let opts = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
-        let (models, _) = tobj::load_obj(&full, &opts).map_err(|e| self.err(path, format!("cannot read mesh {}: {e}", full.display())))?;
+        let (models, _) = tobj::load_obj(&full, &opts)
+            .map_err(|e| self.err(path, format!("cannot read mesh {}: {e}", full.display())))?;
         let mut mesh = Mesh { positions: Vec::new(), normals: Vec::new(), indices: Vec::new() };
         let with_normals = models.iter().all(|m| !m.mesh.normals.is_empty());
         for m in &models {

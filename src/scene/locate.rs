@@ -143,7 +143,8 @@ mod tests {
 
     #[test]
     fn finds_nested_values() {
-        let text = "{\n  \"a\": 1,\n  \"objects\": [\n    {\"m\": \"x\"},\n    {\"s\": [1, 2], \"m\": \"glas\"}\n  ]\n}";
+        let text =
+            "{\n  \"a\": 1,\n  \"objects\": [\n    {\"m\": \"x\"},\n    {\"s\": [1, 2], \"m\": \"glas\"}\n  ]\n}";
         let path = [Seg::Key("objects".into()), Seg::Index(1), Seg::Key("m".into())];
         assert_eq!(locate(text, &path), (5, 24));
         assert_eq!(path_string(&path), "objects[1].m");

@@ -129,7 +129,13 @@ pub struct SceneBuilder {
 
 impl SceneBuilder {
     pub fn new(camera: Camera) -> Self {
-        Self { camera, materials: Vec::new(), meshes: Vec::new(), lights: Vec::new(), defaults: RenderDefaults::default() }
+        Self {
+            camera,
+            materials: Vec::new(),
+            meshes: Vec::new(),
+            lights: Vec::new(),
+            defaults: RenderDefaults::default(),
+        }
     }
 
     /// Adds a material; returns its index.
@@ -176,7 +182,14 @@ impl SceneBuilder {
                     if area > 0.0 && area.is_finite() {
                         light = lights.len() as u32;
                         let prim = tris.len() as u32;
-                        lights.push(Light::Area(AreaLight { v, n: ng, area, le: le.clone(), two_sided: *two_sided, prim }));
+                        lights.push(Light::Area(AreaLight {
+                            v,
+                            n: ng,
+                            area,
+                            le: le.clone(),
+                            two_sided: *two_sided,
+                            prim,
+                        }));
                         light_names.push(format!("{name} (triangle {k})"));
                     }
                 }

@@ -56,9 +56,15 @@ pub fn to_xyz(l: SampledSpectrum, lambda: &SampledWavelengths) -> Vec3 {
 /// XYZ to linear sRGB (D65 white), the standard matrix.
 pub fn xyz_to_linear_srgb(xyz: Vec3) -> Vec3 {
     const M: Mat3 = Mat3::from_cols_array(&[
-        3.240_454_2, -0.969_266, 0.055_643_4, //
-        -1.537_138_5, 1.876_010_8, -0.204_025_9, //
-        -0.498_531_4, 0.041_556, 1.057_225_2,
+        3.240_454_2,
+        -0.969_266,
+        0.055_643_4, //
+        -1.537_138_5,
+        1.876_010_8,
+        -0.204_025_9, //
+        -0.498_531_4,
+        0.041_556,
+        1.057_225_2,
     ]);
     M * xyz
 }

@@ -11,15 +11,14 @@ mod named;
 mod rgb;
 mod sampled;
 
+pub use cie::spectrum_to_xyz;
 pub use cie::{to_linear_srgb, to_xyz, xyz_to_linear_srgb, CIE_Y_INTEGRAL, LAMBDA_MAX, LAMBDA_MIN};
 pub use named::{
-    blackbody, cauchy, glass_ior, illuminant, metal_eta_k, sellmeier, GLASS_NAMES, ILLUMINANT_NAMES,
-    METAL_NAMES,
+    blackbody, cauchy, glass_ior, illuminant, metal_eta_k, sellmeier, GLASS_NAMES, ILLUMINANT_NAMES, METAL_NAMES,
 };
-pub use rgb::{rgb_albedo, rgb_illuminant, RgbToSpectrumTable};
-pub use cie::spectrum_to_xyz;
 pub use named::{cauchy_ior, planck, sellmeier_ior};
 pub use rgb::sigmoid_polynomial;
+pub use rgb::{rgb_albedo, rgb_illuminant, RgbToSpectrumTable};
 pub use sampled::{SampledSpectrum, SampledWavelengths, N_LAMBDA};
 
 use std::sync::Arc;
@@ -154,7 +153,6 @@ fn piecewise_linear_at(points: &[(f32, f32)], lambda: f32) -> f32 {
     let t = (lambda - l0) / (l1 - l0);
     v0 + t * (v1 - v0)
 }
-
 
 #[cfg(test)]
 mod tests {

@@ -29,20 +29,9 @@ struct MetalTable {
 
 impl Table {
     fn points(&self, what: &str) -> Vec<(f32, f32)> {
-        assert_eq!(
-            self.wavelengths_nm.len(),
-            self.values.len(),
-            "{what}: ragged table"
-        );
-        assert!(
-            self.wavelengths_nm.windows(2).all(|w| w[0] < w[1]),
-            "{what}: wavelengths must increase"
-        );
-        self.wavelengths_nm
-            .iter()
-            .copied()
-            .zip(self.values.iter().copied())
-            .collect()
+        assert_eq!(self.wavelengths_nm.len(), self.values.len(), "{what}: ragged table");
+        assert!(self.wavelengths_nm.windows(2).all(|w| w[0] < w[1]), "{what}: wavelengths must increase");
+        self.wavelengths_nm.iter().copied().zip(self.values.iter().copied()).collect()
     }
 
     /// Refractive indices: the end values are held outside the table (an IOR
@@ -56,20 +45,13 @@ impl Table {
     fn zero_outside(&self, what: &str) -> Spectrum {
         let p = self.points(what);
         let (lo, hi) = (p[0].0, p[p.len() - 1].0);
-        Spectrum::from_fn(|l| {
-            if (lo..=hi).contains(&l) {
-                piecewise_linear_at(&p, l)
-            } else {
-                0.0
-            }
-        })
+        Spectrum::from_fn(|l| if (lo..=hi).contains(&l) { piecewise_linear_at(&p, l) } else { 0.0 })
     }
 }
 
 /// Parses one of the data files: every key not starting with `_` is a table.
 fn parse<T: for<'de> Deserialize<'de>>(text: &str, file: &str) -> HashMap<String, T> {
-    let all: HashMap<String, serde_json::Value> =
-        serde_json::from_str(text).unwrap_or_else(|e| panic!("{file}: {e}"));
+    let all: HashMap<String, serde_json::Value> = serde_json::from_str(text).unwrap_or_else(|e| panic!("{file}: {e}"));
     all.into_iter()
         .filter(|(k, _)| !k.starts_with('_'))
         .map(|(k, v)| {
@@ -173,11 +155,7 @@ pub fn blackbody(kelvin: f32) -> Spectrum {
 /// coefficients must put the resonances outside 360-830 nm.
 pub fn sellmeier_ior(b: [f32; 3], c: [f32; 3], lambda_nm: f32) -> f32 {
     let l2 = (lambda_nm as f64 * 1e-3).powi(2);
-    let n2 = 1.0
-        + b.iter()
-            .zip(c.iter())
-            .map(|(&bi, &ci)| bi as f64 * l2 / (l2 - ci as f64))
-            .sum::<f64>();
+    let n2 = 1.0 + b.iter().zip(c.iter()).map(|(&bi, &ci)| bi as f64 * l2 / (l2 - ci as f64)).sum::<f64>();
     n2.max(0.0).sqrt() as f32
 }
 

@@ -44,22 +44,13 @@ use fit::{FitOptions, LAMBDA_SPAN};
 /// here the chains stop at z_1 > 0 (black is never fitted), every cell
 /// converges, and the largest |c| (about 1e4, at the darkest pure blue) is
 /// still well represented in f32.
-const TABLE_FIT: FitOptions = FitOptions {
-    max_steps: 100,
-    rgb_tolerance: 1e-10,
-};
+const TABLE_FIT: FitOptions = FitOptions { max_steps: 100, rgb_tolerance: 1e-10 };
 
 /// Fit settings for `rgb_albedo`'s polish from the table's interpolated start.
-const POLISH_FIT: FitOptions = FitOptions {
-    max_steps: 30,
-    rgb_tolerance: 2e-6,
-};
+const POLISH_FIT: FitOptions = FitOptions { max_steps: 30, rgb_tolerance: 2e-6 };
 
 /// Fit settings for the intermediate colours of `polish`'s continuation.
-const CONTINUATION_FIT: FitOptions = FitOptions {
-    max_steps: 20,
-    rgb_tolerance: 1e-7,
-};
+const CONTINUATION_FIT: FitOptions = FitOptions { max_steps: 20, rgb_tolerance: 1e-7 };
 
 /// File header: magic and format version.
 const MAGIC: &[u8; 8] = b"PRISMRGB";
@@ -89,9 +80,7 @@ fn smoothstep(x: f64) -> f64 {
 
 /// The z nodes of a table of resolution `res`, rounded to the stored f32.
 fn z_nodes(res: usize) -> Vec<f32> {
-    (0..res)
-        .map(|k| smoothstep(smoothstep(k as f64 / (res - 1) as f64)) as f32)
-        .collect()
+    (0..res).map(|k| smoothstep(smoothstep(k as f64 / (res - 1) as f64)) as f32).collect()
 }
 
 /// The colour of cell (m, k, j, i): rgb[m] = z_k, the next two components
@@ -116,10 +105,7 @@ fn cell_rgb(res: usize, z: f32, m: usize, i: usize, j: usize) -> [f64; 3] {
 /// itself is the exact flat S(c2) = z.
 fn solve_chain(res: usize, z: &[f32], m: usize, i: usize, j: usize) -> Vec<[f32; 3]> {
     if i == res - 1 && j == res - 1 {
-        let mut out: Vec<[f32; 3]> = z
-            .iter()
-            .map(|&g| [0.0, 0.0, flat_coefficient(g as f64) as f32])
-            .collect();
+        let mut out: Vec<[f32; 3]> = z.iter().map(|&g| [0.0, 0.0, flat_coefficient(g as f64) as f32]).collect();
         out[0] = out[1];
         out[res - 1] = out[res - 2];
         return out;
@@ -148,24 +134,16 @@ impl RgbToSpectrumTable {
     pub fn generate(res: usize) -> RgbToSpectrumTable {
         assert!(res >= 3, "an RGB table needs at least 3 nodes per axis");
         let z = z_nodes(res);
-        let chains: Vec<(usize, usize, usize)> = (0..3)
-            .flat_map(|m| (0..res).flat_map(move |j| (0..res).map(move |i| (m, j, i))))
-            .collect();
-        let solved: Vec<Vec<[f32; 3]>> = chains
-            .par_iter()
-            .map(|&(m, j, i)| solve_chain(res, &z, m, i, j))
-            .collect();
+        let chains: Vec<(usize, usize, usize)> =
+            (0..3).flat_map(|m| (0..res).flat_map(move |j| (0..res).map(move |i| (m, j, i)))).collect();
+        let solved: Vec<Vec<[f32; 3]>> = chains.par_iter().map(|&(m, j, i)| solve_chain(res, &z, m, i, j)).collect();
         let mut coeffs = vec![[0.0f32; 3]; 3 * res * res * res];
         for (&(m, j, i), chain) in chains.iter().zip(&solved) {
             for (k, c) in chain.iter().enumerate() {
                 coeffs[((m * res + k) * res + j) * res + i] = *c;
             }
         }
-        RgbToSpectrumTable {
-            res,
-            z_nodes: z,
-            coeffs,
-        }
+        RgbToSpectrumTable { res, z_nodes: z, coeffs }
     }
 
     /// The committed table (`src/spectrum/data/rgb_to_spectrum_srgb.bin`).
@@ -203,8 +181,7 @@ impl RgbToSpectrumTable {
 
     /// Parses the file contents of [`write`](Self::write).
     pub fn from_bytes(bytes: &[u8]) -> io::Result<RgbToSpectrumTable> {
-        let bad =
-            |what: &str| io::Error::new(io::ErrorKind::InvalidData, format!("RGB table: {what}"));
+        let bad = |what: &str| io::Error::new(io::ErrorKind::InvalidData, format!("RGB table: {what}"));
         if bytes.len() < 16 || &bytes[..8] != MAGIC {
             return Err(bad("not a prism RGB table"));
         }
@@ -216,10 +193,7 @@ impl RgbToSpectrumTable {
         if !(3..=1024).contains(&res) || bytes.len() != 16 + 4 * (res + 9 * res * res * res) {
             return Err(bad("size does not match its resolution"));
         }
-        let floats: Vec<f32> = bytes[16..]
-            .chunks_exact(4)
-            .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
-            .collect();
+        let floats: Vec<f32> = bytes[16..].chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().unwrap())).collect();
         let (z_nodes, rest) = floats.split_at(res);
         if !z_nodes.windows(2).all(|w| w[0] < w[1]) || rest.iter().any(|v| !v.is_finite()) {
             return Err(bad("nodes not increasing or coefficients not finite"));
@@ -252,15 +226,10 @@ impl RgbToSpectrumTable {
         let y = (rgb[(m + 2) % 3] / z * last).clamp(0.0, last);
         let xi = (x as usize).min(res - 2);
         let yi = (y as usize).min(res - 2);
-        let zi = self
-            .z_nodes
-            .partition_point(|&n| n <= z)
-            .saturating_sub(1)
-            .min(res - 2);
+        let zi = self.z_nodes.partition_point(|&n| n <= z).saturating_sub(1).min(res - 2);
         let dx = (x - xi as f32) as f64;
         let dy = (y - yi as f32) as f64;
-        let dz = ((z - self.z_nodes[zi]) / (self.z_nodes[zi + 1] - self.z_nodes[zi]))
-            .clamp(0.0, 1.0) as f64;
+        let dz = ((z - self.z_nodes[zi]) / (self.z_nodes[zi + 1] - self.z_nodes[zi])).clamp(0.0, 1.0) as f64;
         let mut c = [0.0f64; 3];
         for (dk, wz) in [(0, 1.0 - dz), (1, dz)] {
             for (dj, wy) in [(0, 1.0 - dy), (1, dy)] {
@@ -304,11 +273,7 @@ fn flat_coefficient(g: f64) -> f64 {
 fn to_nanometres(c: &[f64; 3]) -> [f64; 3] {
     let (l0, w) = (LAMBDA_MIN as f64, LAMBDA_SPAN);
     let [a, b, cc] = *c;
-    [
-        a / (w * w),
-        b / w - 2.0 * a * l0 / (w * w),
-        cc - b * l0 / w + a * l0 * l0 / (w * w),
-    ]
+    [a / (w * w), b / w - 2.0 * a * l0 / (w * w), cc - b * l0 / w + a * l0 * l0 / (w * w)]
 }
 
 /// The reflectance S(c0 l^2 + c1 l + c2) at `lambda` nm, for coefficients from
@@ -490,10 +455,7 @@ mod tests {
         let c = t.lookup(rgb);
         let stored = t.coeffs[((m * res + k) * res + j) * res + i];
         for q in 0..3 {
-            assert!(
-                (c[q] - stored[q] as f64).abs() < 1e-3 * (1.0 + c[q].abs()),
-                "{c:?} {stored:?}"
-            );
+            assert!((c[q] - stored[q] as f64).abs() < 1e-3 * (1.0 + c[q].abs()), "{c:?} {stored:?}");
         }
     }
 }

@@ -190,7 +190,8 @@ mod tests {
     fn visible_pdf_integrates_to_one() {
         let n = 470_000;
         let h = 470.0 / n as f64;
-        let s: f64 = (0..n).map(|i| visible_wavelength_pdf(360.0 + (i as f64 + 0.5) as f32 * h as f32) as f64 * h).sum();
+        let s: f64 =
+            (0..n).map(|i| visible_wavelength_pdf(360.0 + (i as f64 + 0.5) as f32 * h as f32) as f64 * h).sum();
         assert!((s - 1.0).abs() < 1e-3, "{s}");
     }
 

@@ -37,36 +37,21 @@ fn cmf_table() -> Vec<[f64; 3]> {
         .lines()
         .filter(|l| !l.starts_with('#') && !l.starts_with("lambda"))
         .map(|l| {
-            let v: Vec<f32> = l
-                .split(',')
-                .map(|x| x.trim().parse().expect("CIE table"))
-                .collect();
+            let v: Vec<f32> = l.split(',').map(|x| x.trim().parse().expect("CIE table")).collect();
             [v[1] as f64, v[2] as f64, v[3] as f64]
         })
         .collect();
-    assert_eq!(
-        rows.len(),
-        N_DENSE,
-        "CIE table must cover 360..=830 nm at 1 nm"
-    );
+    assert_eq!(rows.len(), N_DENSE, "CIE table must cover 360..=830 nm at 1 nm");
     rows
 }
 
 static OBSERVER: LazyLock<Observer> = LazyLock::new(|| {
     let d65 = illuminant("D65").expect("D65 is tabulated");
     let cmf = cmf_table();
-    let spd: Vec<f64> = (0..N_DENSE)
-        .map(|i| d65.eval(LAMBDA_MIN + i as f32) as f64)
-        .collect();
+    let spd: Vec<f64> = (0..N_DENSE).map(|i| d65.eval(LAMBDA_MIN + i as f32) as f64).collect();
     let norm: f64 = cmf.iter().zip(&spd).map(|(c, e)| c[1] * e).sum();
-    let w: Vec<[f64; 3]> = cmf
-        .iter()
-        .zip(&spd)
-        .map(|(c, e)| c.map(|v| v * e / norm))
-        .collect();
-    let white = w
-        .iter()
-        .fold([0.0; 3], |a, v| [a[0] + v[0], a[1] + v[1], a[2] + v[2]]);
+    let w: Vec<[f64; 3]> = cmf.iter().zip(&spd).map(|(c, e)| c.map(|v| v * e / norm)).collect();
+    let white = w.iter().fold([0.0; 3], |a, v| [a[0] + v[0], a[1] + v[1], a[2] + v[2]]);
     // Columns of the renderer's matrix, read back exactly (M e_j).
     let mut xyz_to_rgb = [[0.0; 3]; 3];
     for (j, e) in [Vec3::X, Vec3::Y, Vec3::Z].into_iter().enumerate() {
@@ -76,13 +61,7 @@ static OBSERVER: LazyLock<Observer> = LazyLock::new(|| {
         }
     }
     let rgb_to_xyz = inverse(&xyz_to_rgb).expect("sRGB matrix is invertible");
-    Observer {
-        t: (0..N_DENSE).map(|i| i as f64 / LAMBDA_SPAN).collect(),
-        w,
-        white,
-        xyz_to_rgb,
-        rgb_to_xyz,
-    }
+    Observer { t: (0..N_DENSE).map(|i| i as f64 / LAMBDA_SPAN).collect(), w, white, xyz_to_rgb, rgb_to_xyz }
 });
 
 /// The sigmoid S(x) = 1/2 + x / (2 sqrt(1 + x^2)) of Jakob & Hanika (eq. 3):
@@ -169,11 +148,7 @@ fn lab_and_jacobian(xyz: &[f64; 3], white: &[f64; 3]) -> ([f64; 3], Mat3) {
     let (fz, dz) = lab_f(xyz[2] / white[2]);
     let (dx, dy, dz) = (dx / white[0], dy / white[1], dz / white[2]);
     let lab = [116.0 * fy - 16.0, 500.0 * (fx - fy), 200.0 * (fy - fz)];
-    let jac = [
-        [0.0, 116.0 * dy, 0.0],
-        [500.0 * dx, -500.0 * dy, 0.0],
-        [0.0, 200.0 * dy, -200.0 * dz],
-    ];
+    let jac = [[0.0, 116.0 * dy, 0.0], [500.0 * dx, -500.0 * dy, 0.0], [0.0, 200.0 * dy, -200.0 * dz]];
     (lab, jac)
 }
 
@@ -201,15 +176,9 @@ pub(super) fn fit(rgb: [f64; 3], c: &mut [f64; 3], opt: FitOptions) -> f64 {
     let evaluate = |c: &[f64; 3]| {
         let (xyz, jx) = xyz_and_jacobian(c);
         let (lab, jl) = lab_and_jacobian(&xyz, &o.white);
-        let r = [
-            lab[0] - target_lab[0],
-            lab[1] - target_lab[1],
-            lab[2] - target_lab[2],
-        ];
+        let r = [lab[0] - target_lab[0], lab[1] - target_lab[1], lab[2] - target_lab[2]];
         let fit_rgb = mul(&o.xyz_to_rgb, &xyz);
-        let err = (0..3)
-            .map(|i| (fit_rgb[i] - rgb[i]).abs())
-            .fold(0.0, f64::max);
+        let err = (0..3).map(|i| (fit_rgb[i] - rgb[i]).abs()).fold(0.0, f64::max);
         (r, matmul(&jl, &jx), err)
     };
     let cost = |r: &[f64; 3]| r.iter().map(|v| v * v).sum::<f64>();
@@ -297,10 +266,7 @@ mod tests {
         for x in [-30.0, -1.0, -0.1, 0.3, 2.0, 50.0] {
             let h = 1e-6 * (1.0 + f64::abs(x));
             let fd = (sigmoid(x + h) - sigmoid(x - h)) / (2.0 * h);
-            assert!(
-                (fd - sigmoid_derivative(x)).abs() < 1e-7 * (1.0 + fd.abs()),
-                "{x}"
-            );
+            assert!((fd - sigmoid_derivative(x)).abs() < 1e-7 * (1.0 + fd.abs()), "{x}");
         }
     }
 
@@ -320,10 +286,7 @@ mod tests {
                 let lm = lab_and_jacobian(&xyz_and_jacobian(&cm).0, &o.white).0;
                 for r in 0..3 {
                     let fd = (lp[r] - lm[r]) / (2.0 * h);
-                    assert!(
-                        (fd - j[r][k]).abs() < 1e-5 * (1.0 + fd.abs()),
-                        "{c:?} {r} {k}"
-                    );
+                    assert!((fd - j[r][k]).abs() < 1e-5 * (1.0 + fd.abs()), "{c:?} {r} {k}");
                 }
             }
         }
@@ -348,16 +311,8 @@ mod tests {
 
     #[test]
     fn fits_a_saturated_colour_from_flat_grey() {
-        let opt = FitOptions {
-            max_steps: 100,
-            rgb_tolerance: 1e-9,
-        };
-        for rgb in [
-            [0.8, 0.1, 0.05],
-            [0.05, 0.3, 0.6],
-            [0.2, 0.7, 0.1],
-            [0.02, 0.01, 0.015],
-        ] {
+        let opt = FitOptions { max_steps: 100, rgb_tolerance: 1e-9 };
+        for rgb in [[0.8, 0.1, 0.05], [0.05, 0.3, 0.6], [0.2, 0.7, 0.1], [0.02, 0.01, 0.015]] {
             let mut c = [0.0; 3];
             let err = fit(rgb, &mut c, opt);
             assert!(err < 1e-9, "{rgb:?}: {err}");
