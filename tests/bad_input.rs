@@ -394,7 +394,8 @@ fn error_table_matches_the_tests() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let doc = std::fs::read_to_string(root.join("docs/scene-format.md")).unwrap();
     let cli = std::fs::read_to_string(root.join("tests/cli.rs")).unwrap();
-    let section = &doc[doc.find("\n## Errors").expect("docs/scene-format.md has an Errors section")..];
+    let section = &doc[doc.find("\n## Errors").expect("docs/scene-format.md has an Errors section") + 1..];
+    let section = &section[..section.find("\n## ").unwrap_or(section.len())];
     let mut rows = Vec::new();
     for line in section.lines().filter(|l| l.starts_with("| `")) {
         let cols: Vec<&str> = line.split(" | ").collect();

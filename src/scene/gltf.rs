@@ -359,7 +359,7 @@ impl Importer {
     }
 
     fn camera(&self, label: &str, world: Affine3A, yfov: f32, aspect: Option<f32>) -> Result<Camera, LoadError> {
-        let position = Vec3A::from(world.translation);
+        let position = world.translation;
         let forward = world.transform_vector3a(-Vec3A::Z).normalize_or_zero();
         let up = world.transform_vector3a(Vec3A::Y).normalize_or_zero();
         if forward == Vec3A::ZERO || forward.cross(up).normalize_or_zero() == Vec3A::ZERO {
@@ -410,7 +410,7 @@ impl Importer {
         // coloured white; the colour multiplies it per channel, so a pure
         // red light has the luminance of the red primary times intensity.
         let spectrum = spectrum::rgb_illuminant(color).scale(intensity);
-        content.lights.push((name, Vec3A::from(world.translation), spectrum));
+        content.lights.push((name, world.translation, spectrum));
         Ok(())
     }
 
@@ -437,6 +437,27 @@ impl Importer {
                          TriangleFan)"
                     ),
                 ));
+            }
+            // The crate's readers assume these layouts (and panic or misread
+            // otherwise): check them first.
+            use gltf::accessor::{DataType, Dimensions};
+            let layout = |a: &gltf::Accessor, dims: Dimensions, types: &[DataType]| {
+                a.dimensions() == dims && types.contains(&a.data_type())
+            };
+            if let Some(a) = prim.get(&gltf::Semantic::Positions) {
+                if !layout(&a, Dimensions::Vec3, &[DataType::F32]) {
+                    return Err(self.fail(&pwhat, "POSITION must be VEC3 of FLOAT (quantized positions unsupported)"));
+                }
+            }
+            if let Some(a) = prim.get(&gltf::Semantic::Normals) {
+                if !layout(&a, Dimensions::Vec3, &[DataType::F32]) {
+                    return Err(self.fail(&pwhat, "NORMAL must be VEC3 of FLOAT (quantized normals unsupported)"));
+                }
+            }
+            if let Some(a) = prim.indices() {
+                if !layout(&a, Dimensions::Scalar, &[DataType::U8, DataType::U16, DataType::U32]) {
+                    return Err(self.fail(&pwhat, "indices must be SCALAR of UNSIGNED_BYTE, _SHORT or _INT"));
+                }
             }
             if prim.attributes().any(|(s, _)| s == gltf::Semantic::Colors(0)) {
                 self.warn(&pwhat, "vertex colours (COLOR_0) are ignored");
@@ -509,12 +530,12 @@ impl Importer {
         overrides: &BTreeMap<String, u32>,
     ) -> Vec<u32> {
         let mut ids = vec![0; self.materials.len()];
-        for slot in 0..self.materials.len() {
+        for (slot, id) in ids.iter_mut().enumerate() {
             if !content.meshes.iter().any(|m| m.material == slot) {
                 continue;
             }
-            if let Some(&id) = overrides.get(&self.materials[slot].key).or(material.as_ref()) {
-                ids[slot] = id;
+            if let Some(&o) = overrides.get(&self.materials[slot].key).or(material.as_ref()) {
+                *id = o;
                 continue;
             }
             let doc = self.doc.clone();
@@ -523,7 +544,7 @@ impl Importer {
                 None => default_material(&doc),
             };
             let bsdf = self.bsdf(&gm, &self.materials[slot].label.clone());
-            ids[slot] = b.material(&self.materials[slot].key, bsdf);
+            *id = b.material(&self.materials[slot].key, bsdf);
         }
         ids
     }

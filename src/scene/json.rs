@@ -789,6 +789,14 @@ pub fn parse_scene(text: &str, file: &str, dir: &Path) -> Result<SceneBuilder, L
     build(&ctx, &parsed)
 }
 
+/// The id of the scene material `name`; `at` locates the reference.
+fn material_id(ctx: &Ctx, ids: &BTreeMap<String, u32>, name: &str, at: &[Seg]) -> Result<u32, LoadError> {
+    ids.get(name).copied().ok_or_else(|| {
+        let known: Vec<&str> = ids.keys().map(String::as_str).collect();
+        ctx.err(at, format!("unknown material \"{name}\" (known: {})", known.join(", ")))
+    })
+}
+
 /// Adds a `gltf` shape's meshes and lights (src/scene/gltf.rs).
 fn include_gltf(
     ctx: &Ctx,
@@ -796,8 +804,9 @@ fn include_gltf(
     path: &[Seg],
     o: &ObjectSpec,
     g: &GltfSpec,
-    find: &dyn Fn(&str, &[Seg]) -> Result<u32, LoadError>,
+    ids: &BTreeMap<String, u32>,
 ) -> Result<(), LoadError> {
+    let find = |name: &str, at: &[Seg]| material_id(ctx, ids, name, at);
     if o.emission.is_some() || o.two_sided {
         return Err(ctx.err(path, "emission and two_sided do not apply to a gltf shape (its emissive materials emit)"));
     }
@@ -858,18 +867,12 @@ fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
 
     for (i, o) in f.objects.iter().enumerate() {
         let path = with_index(&[Seg::Key("objects".into())], i);
-        let find = |name: &str, at: &[Seg]| {
-            material_ids.get(name).copied().ok_or_else(|| {
-                let known: Vec<&str> = material_ids.keys().map(String::as_str).collect();
-                ctx.err(at, format!("unknown material \"{name}\" (known: {})", known.join(", ")))
-            })
-        };
         if let ShapeSpec::Gltf(g) = &o.shape {
-            include_gltf(ctx, &mut b, &path, o, g, &find)?;
+            include_gltf(ctx, &mut b, &path, o, g, &material_ids)?;
             continue;
         }
         let material = match &o.material {
-            Some(m) => find(m, &with(&path, "material"))?,
+            Some(m) => material_id(ctx, &material_ids, m, &with(&path, "material"))?,
             None => return Err(ctx.err(&path, "missing field `material`")),
         };
         let mut mesh = ctx.shape(&with(&path, "shape"), &o.shape)?;

@@ -1,0 +1,475 @@
+//! The glTF loader (src/scene/gltf.rs) on public sample models the project
+//! did not write (scenes/gltf/README.md lists them with their licences), on
+//! its error paths, inside a JSON scene, and on an export of the Cornell box
+//! that must render the same image as the JSON scene within noise.
+//!
+//! The Cornell box export (scenes/gltf/cornell-box.gltf + .bin) is made by
+//! `cornell_export` below from scenes/cornell-box.json;
+//! `cornell_export_is_current` fails when they drift apart, and
+//! `PRISM_WRITE_GLTF=1 cargo test --release --test gltf cornell_export`
+//! rewrites the files.
+
+#[path = "common/scenes.rs"]
+mod scenes;
+
+use glam::{Vec2, Vec3A};
+use prism::film::Film;
+use prism::geometry::Ray;
+use prism::materials::Bsdf;
+use prism::render::{render, RenderOptions};
+use prism::scene::{gltf_conductor_eta_k, load_gltf, load_scene, parse_gltf, parse_scene, GltfScene, Scene};
+use prism::spectrum::{illuminant, rgb_albedo, spectrum_to_xyz, xyz_to_linear_srgb, Spectrum};
+use prism::stats::{compare, render_passes, BlockStats};
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+
+fn dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join("gltf")
+}
+
+fn load(name: &str) -> GltfScene {
+    load_gltf(&dir().join(name)).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Parses glTF JSON `v` as if it were the file `name` of scenes/gltf.
+fn parse(v: &Value, name: &str) -> Result<GltfScene, String> {
+    parse_gltf(v.to_string().as_bytes(), name, &dir()).map_err(|e| e.to_string())
+}
+
+fn read_json(path: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+fn has(messages: &[String], needle: &str) -> bool {
+    messages.iter().any(|m| m.contains(needle))
+}
+
+/// Renders `spp` samples per pixel at 32 x 32 and returns the image after
+/// checking that no sample was dropped and that something is visible.
+fn render_checked(scene: &Scene, integrator: &str, spp: u32) -> Vec<[f32; 3]> {
+    let mut film = Film::new(scene.camera.width, scene.camera.height);
+    let opts = RenderOptions { seed: 7, threads: 0, progress: false };
+    render(scene, scenes::integrator(integrator).as_ref(), &opts, &mut film, 0..spp);
+    assert_eq!(film.dropped.total(), 0, "{integrator}: dropped samples {:?}", film.dropped);
+    let image = film.image();
+    assert!(image.iter().flatten().all(|v| v.is_finite()));
+    let mean: f32 = image.iter().flatten().sum::<f32>() / (image.len() * 3) as f32;
+    assert!(mean > 0.0, "{integrator}: black image");
+    image
+}
+
+#[test]
+fn sample_models_load_and_render_without_dropped_samples() {
+    // (file, a message the loader must print)
+    let cases = [
+        ("Box.gltf", "constant white (D65) environment"),
+        ("BoxTextured.gltf", "baseColorTexture is replaced by its mean"),
+        ("Triangle.gltf", "default framing"),
+        ("Cameras.gltf", "orthographic camera ignored"),
+        ("LightsPoint.gltf", "range is ignored"),
+        ("LightsSpot.gltf", "rendered as a point light"),
+    ];
+    for (name, expected) in cases {
+        let g = load(name);
+        assert!(has(&g.messages, expected), "{name}: no message containing {expected:?} in {:#?}", g.messages);
+        // Through the CLI's entry point too (the extension dispatch).
+        let mut b = load_scene(&dir().join(name)).unwrap_or_else(|e| panic!("{e}"));
+        b.set_resolution(32, 32);
+        let scene = b.build();
+        assert!(scene.triangle_count() > 0, "{name}");
+        for integrator in ["path", "bdpt"] {
+            render_checked(&scene, integrator, 4);
+        }
+    }
+}
+
+#[test]
+fn punctual_lights_become_point_lights_with_candela_luminance() {
+    let scene = load("LightsPoint.gltf").builder.build();
+    assert_eq!(scene.lights.len(), 3);
+    assert!(scene.environment().is_none());
+    // White 450 cd would have luminance 450; the red light has that of the
+    // red primary (0.2126) times 450.
+    let red = scene.light_names.iter().position(|n| n == "PointLightRed").expect("red light");
+    let prism::light::Light::Point(p) = &scene.lights[red] else { panic!("not a point light") };
+    assert!((p.p - Vec3A::new(2.0, 1.0, 0.0)).length() < 1e-6);
+    let y = p.intensity.luminance();
+    assert!((y / 450.0 - 0.2126).abs() < 2e-3, "luminance {y}");
+}
+
+#[test]
+fn first_perspective_camera_is_used() {
+    let g = load("Cameras.gltf");
+    assert!(has(&g.messages, "nodes[1]: renders through this node's camera"), "{:#?}", g.messages);
+    let scene = g.builder.build();
+    let c = &scene.camera;
+    assert_eq!((c.width, c.height), (480, 480));
+    assert!((c.position - Vec3A::new(0.5, 0.5, 3.0)).length() < 1e-6);
+    let center = c.generate_ray(Vec2::new(240.0, 240.0)).d;
+    assert!((center - Vec3A::NEG_Z).length() < 1e-5, "{center}");
+    // yfov 0.7 rad: the top edge's ray is 0.35 rad above the axis.
+    let top = c.generate_ray(Vec2::new(240.0, 0.0)).d;
+    assert!((top.y.atan2(-top.z) - 0.35).abs() < 1e-4);
+}
+
+#[test]
+fn metallic_base_colour_becomes_a_conductor_with_that_reflectance() {
+    let scene = load("Box.gltf").builder.build();
+    // Box.gltf: baseColorFactor (0.8, 0, 0), metallic and roughness default 1.
+    let Bsdf::Conductor(c) = &scene.materials[0].bsdf else { panic!("{:?}", scene.materials[0].bsdf) };
+    let f0 = rgb_albedo([0.8, 0.0, 0.0]);
+    for l in [420.0, 500.0, 580.0, 650.0] {
+        let (n, k) = (c.eta.eval(l), c.k.eval(l));
+        let r = ((n - 1.0).powi(2) + k * k) / ((n + 1.0).powi(2) + k * k);
+        assert!((r - f0.eval(l).min(0.999)).abs() < 1e-3, "{l} nm: F0 {r} vs {}", f0.eval(l));
+        assert_eq!(gltf_conductor_eta_k(f0.eval(l)), (n, k));
+    }
+    assert!((c.distrib.alpha_x - 1.0).abs() < 1e-6);
+}
+
+#[test]
+fn material_rules_threshold_metallic_and_transmission_with_warnings() {
+    let mut v = read_json(&dir().join("Box.gltf"));
+    let pbr = &mut v["materials"][0]["pbrMetallicRoughness"];
+    pbr["metallicFactor"] = json!(0.3);
+    pbr["roughnessFactor"] = json!(0.5);
+    let g = parse(&v, "Box (metallic 0.3)").unwrap();
+    assert!(has(&g.messages, "metallic 0.3 is neither 0 nor 1: rendered as a non-metal (threshold 0.5)"));
+    let scene = g.builder.build();
+    assert!(matches!(scene.materials[0].bsdf, Bsdf::Diffuse(_)));
+
+    v["materials"][0]["extensions"] =
+        json!({"KHR_materials_transmission": {"transmissionFactor": 1.0}, "KHR_materials_ior": {"ior": 1.33}});
+    v["extensionsUsed"] = json!(["KHR_materials_transmission", "KHR_materials_ior"]);
+    let g = parse(&v, "Box (glass)").unwrap();
+    assert!(has(&g.messages, "does not tint transmission"), "{:#?}", g.messages);
+    let scene = g.builder.build();
+    let Bsdf::Dielectric(d) = &scene.materials[0].bsdf else { panic!("{:?}", scene.materials[0].bsdf) };
+    assert_eq!(d.eta, Spectrum::Constant(1.33));
+    assert!((d.distrib.alpha_x - 0.25).abs() < 1e-6);
+}
+
+#[test]
+fn texture_mean_is_srgb_decoded() {
+    let g = load("BoxTextured.gltf");
+    let scene = g.builder.build();
+    let Bsdf::Diffuse(d) = &scene.materials[0].bsdf else { panic!() };
+    // The Cesium logo texture is mostly light grey-blue: its decoded mean is
+    // a light colour, and the loader prints the value it used.
+    let rgb = xyz_to_linear_srgb(spectrum_to_xyz(&d.reflectance.scaled_by(&illuminant("D65").unwrap())));
+    assert!(rgb.min_element() > 0.2 && rgb.max_element() < 0.9, "{rgb}");
+    assert!(has(&g.messages, "baseColorTexture is replaced by its mean ["));
+}
+
+#[test]
+fn primitive_modes_points_and_lines_are_errors_triangle_modes_render() {
+    let path = dir().join("MeshPrimitiveModes.gltf");
+    let e = load_gltf(&path).err().expect("points must be refused").to_string();
+    assert!(e.contains("nodes[0] (meshes[0] \"mesh with POINTS\"), primitive 0: mode Points is not supported"), "{e}");
+    // Without the point and line meshes: TRIANGLES, TRIANGLE_STRIP and
+    // TRIANGLE_FAN each cover the same hexagon (radius 1, at x = -2, 0, 2;
+    // y = -3), wound counter-clockwise as seen from +z.
+    let mut v = read_json(&path);
+    v["scenes"][0]["nodes"] = json!([4, 5, 6]);
+    let scene = parse(&v, "MeshPrimitiveModes (triangles)").unwrap().builder.build();
+    assert_eq!(scene.triangle_count(), 6 + 4 + 6);
+    for cx in [-2.0f32, 0.0, 2.0] {
+        for k in 0..12 {
+            let a = (k as f32 + 0.5) * std::f32::consts::TAU / 12.0;
+            let inside = Vec3A::new(cx + 0.8 * a.cos(), -3.0 + 0.8 * a.sin(), 5.0);
+            let hit = scene.intersect(&Ray::new(inside, Vec3A::NEG_Z)).unwrap_or_else(|| panic!("hole at x {cx}, {k}"));
+            assert!(hit.ng.z > 0.99, "x {cx}: triangle wound clockwise ({})", hit.ng);
+            let outside = Vec3A::new(cx + 1.02 * a.cos(), -3.0 + 1.02 * a.sin(), 5.0);
+            assert!(scene.intersect(&Ray::new(outside, Vec3A::NEG_Z)).is_none(), "x {cx}: covers too much");
+        }
+    }
+}
+
+#[test]
+fn unsupported_features_are_named_errors() {
+    let mut v = read_json(&dir().join("LightsPoint.gltf"));
+    v["extensions"]["KHR_lights_punctual"]["lights"][1]["type"] = json!("directional");
+    let e = parse(&v, "LightsPoint (directional)").err().unwrap();
+    assert!(e.contains("nodes[2] \"PointLightGreen\": directional light \"PointLightGreen\" is not supported"), "{e}");
+
+    let mut v = read_json(&dir().join("Triangle.gltf"));
+    v["extensionsUsed"] = json!(["KHR_draco_mesh_compression"]);
+    v["extensionsRequired"] = json!(["KHR_draco_mesh_compression"]);
+    let e = parse(&v, "Triangle (draco)").err().unwrap();
+    assert!(e.contains("extensionsRequired[0]: the file requires extension KHR_draco_mesh_compression"), "{e}");
+
+    // Used but not required: a warning, and the file renders without it.
+    v["extensionsRequired"] = json!([]);
+    let g = parse(&v, "Triangle (draco used)").unwrap();
+    assert!(has(&g.messages, "extension KHR_draco_mesh_compression is ignored"));
+
+    let mut v = read_json(&dir().join("Triangle.gltf"));
+    v["meshes"][0]["primitives"][0]["indices"] = json!(1);
+    let e = parse(&v, "Triangle (bad indices)").err().unwrap();
+    assert!(e.contains("nodes[0] (meshes[0]), primitive 0: indices must be SCALAR"), "{e}");
+}
+
+#[test]
+fn json_scene_includes_gltf_with_material_overrides() {
+    let scene_text = |materials: &str, material: &str| {
+        format!(
+            r#"{{
+  "camera": {{"position": [0, 1, 4], "look_at": [0, 0, 0], "fov": 40, "width": 32, "height": 32}},
+  "materials": {{"grey": {{"type": "diffuse", "reflectance": 0.5}}}},
+  "objects": [
+    {{"name": "box", "shape": {{"type": "gltf", "file": "Box.gltf", "materials": {materials}}}{material},
+      "transform": {{"translate": [0, 0.5, 0]}}}},
+    {{"shape": {{"type": "quad", "corners": [[-5, 0, -5], [-5, 0, 5], [5, 0, 5], [5, 0, -5]]}}, "material": "grey"}}
+  ],
+  "lights": [{{"type": "point", "position": [2, 4, 3], "intensity": 20}}]
+}}"#
+        )
+    };
+    let parse_json = |t: &str| parse_scene(t, "include.json", &dir()).map(|b| b.build()).map_err(|e| e.to_string());
+    let scene = parse_json(&scene_text(r##"{"#0": "grey"}"##, "")).unwrap();
+    // The box's 12 triangles, moved up by 0.5 (it spans [-0.5, 0.5]); the
+    // override replaced the glTF metal by the scene's grey.
+    assert_eq!(scene.triangle_count(), 12 + 2);
+    assert_eq!(scene.materials.len(), 1);
+    let hit = scene.intersect(&Ray::new(Vec3A::new(0.0, 3.0, 0.0), Vec3A::NEG_Y)).unwrap();
+    assert!((hit.p.y - 1.0).abs() < 1e-5, "{}", hit.p);
+    render_checked(&scene, "path", 4);
+
+    // Without an override the glTF material maps itself (a conductor).
+    let scene = parse_json(&scene_text("{}", "")).unwrap();
+    assert!(scene.materials.iter().any(|m| matches!(m.bsdf, Bsdf::Conductor(_))));
+    // `material` replaces every glTF material.
+    let scene = parse_json(&scene_text("{}", r#", "material": "grey""#)).unwrap();
+    assert_eq!(scene.materials.len(), 1);
+
+    let e = parse_json(&scene_text(r#"{"Gold": "grey"}"#, "")).err().unwrap();
+    assert!(e.contains("objects[0].shape.materials.Gold") && e.contains("has no material \"Gold\" (known: #0)"), "{e}");
+    let e = parse_json(&scene_text(r##"{"#0": "nosuch"}"##, "")).err().unwrap();
+    assert!(e.contains("unknown material \"nosuch\""), "{e}");
+    let e = parse_json(&scene_text("{}", "").replace("Box.gltf", "nosuch.gltf")).err().unwrap();
+    assert!(e.contains("objects[0].shape.file") && e.contains("cannot read glTF file"), "{e}");
+    let e = parse_json(&scene_text("{}", "").replace(r#""material": "grey""#, r#""comment": "x""#)).err().unwrap();
+    assert!(e.contains("objects[1]: missing field `material`"), "{e}");
+}
+
+// ------------------------------------------------------------- Cornell box
+
+/// Linear sRGB of a reflectance under D65 (the definition `rgb_albedo`
+/// inverts, src/spectrum/rgb.rs).
+fn reflectance_rgb(s: &Spectrum) -> [f32; 3] {
+    let rgb = xyz_to_linear_srgb(spectrum_to_xyz(&s.scaled_by(&illuminant("D65").unwrap())));
+    rgb.to_array().map(|c| c.clamp(0.0, 1.0))
+}
+
+/// Linear sRGB of an emission spectrum seen directly (the colour
+/// `rgb_illuminant` reproduces).
+fn emission_rgb(s: &Spectrum) -> [f32; 3] {
+    xyz_to_linear_srgb(spectrum_to_xyz(s)).to_array().map(|c| c.max(0.0))
+}
+
+fn tabulated(v: &Value) -> Spectrum {
+    let nums = |k: &str| v[k].as_array().unwrap().iter().map(|x| x.as_f64().unwrap() as f32).collect::<Vec<_>>();
+    let pts: Vec<(f32, f32)> = nums("wavelengths").into_iter().zip(nums("values")).collect();
+    Spectrum::piecewise_linear(&pts)
+}
+
+/// The emissive colour as the export writes it: factor in [0, 1] and
+/// strength, so that factor x strength (in f32, as the loader computes it)
+/// is the light's RGB.
+fn emissive_split(rgb: [f32; 3]) -> ([f32; 3], f32) {
+    let m = rgb[0].max(rgb[1]).max(rgb[2]);
+    (rgb.map(|c| c / m), m)
+}
+
+/// An f32 as the shortest decimal that reads back as the same f32 (what
+/// glTF readers parse it into), instead of its exact f64 expansion.
+fn num(x: f32) -> Value {
+    json!(x.to_string().parse::<f64>().unwrap())
+}
+
+fn nums(x: &[f32]) -> Value {
+    Value::Array(x.iter().map(|&v| num(v)).collect())
+}
+
+/// glTF JSON and binary buffer of scenes/cornell-box.json: one node and mesh
+/// per object (same names, quads as triangles (0, 1, 2), (0, 2, 3) as the
+/// JSON loader makes them), lengths in millimetres as in the source (glTF
+/// nominally uses metres; radiance does not depend on scale), the camera as
+/// a node at the pinhole rotated 180 degrees about y (glTF cameras look
+/// down -z). Materials carry the RGB of each measured spectrum (reflectance
+/// under D65; the light's colour with its luminance in
+/// KHR_materials_emissive_strength) and, in `extras.prism`, the spectra
+/// themselves.
+fn cornell_export() -> (Value, Vec<u8>) {
+    let src = read_json(&Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.json"));
+    let spectra = &src["spectra"];
+    let reflectance_of = |material: &str| src["materials"][material]["reflectance"].as_str().unwrap().to_string();
+    let mut materials = Vec::new();
+    let mut material_index = std::collections::BTreeMap::new();
+    for name in ["white", "red", "green"] {
+        let spec = &spectra[reflectance_of(name)];
+        let rgb = reflectance_rgb(&tabulated(spec));
+        material_index.insert(name.to_string(), materials.len());
+        materials.push(json!({
+            "name": name,
+            "pbrMetallicRoughness": {"baseColorFactor": nums(&[rgb[0], rgb[1], rgb[2], 1.0]), "metallicFactor": 0.0, "roughnessFactor": 1.0},
+            "extras": {"prism": {"reflectance": spec}}
+        }));
+    }
+    let (mut positions, mut indices) = (Vec::new(), Vec::new());
+    let (mut nodes, mut meshes, mut accessors) = (Vec::new(), Vec::new(), Vec::new());
+    for (i, o) in src["objects"].as_array().unwrap().iter().enumerate() {
+        assert_eq!(o["shape"]["type"], "quad");
+        let corners: Vec<[f32; 3]> = o["shape"]["corners"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| [0, 1, 2].map(|k| c[k].as_f64().unwrap() as f32))
+            .collect();
+        let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+        for c in &corners {
+            for k in 0..3 {
+                lo[k] = lo[k].min(c[k]);
+                hi[k] = hi[k].max(c[k]);
+            }
+            positions.extend(c.iter().flat_map(|x| x.to_le_bytes()));
+        }
+        indices.extend([0u16, 1, 2, 0, 2, 3].iter().flat_map(|x| x.to_le_bytes()));
+        let material = o["material"].as_str().unwrap();
+        let material = match o.get("emission") {
+            Some(e) => {
+                assert_eq!(material, "white", "the light's material");
+                let spec = &spectra[e.as_str().unwrap()];
+                let (factor, strength) = emissive_split(emission_rgb(&tabulated(spec)));
+                let white = &spectra[reflectance_of("white")];
+                let base = reflectance_rgb(&tabulated(white));
+                materials.push(json!({
+                    "name": "light",
+                    "pbrMetallicRoughness": {"baseColorFactor": nums(&[base[0], base[1], base[2], 1.0]), "metallicFactor": 0.0, "roughnessFactor": 1.0},
+                    "emissiveFactor": nums(&factor),
+                    "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": num(strength)}},
+                    "extras": {"prism": {"reflectance": white, "emission": spec}}
+                }));
+                materials.len() - 1
+            }
+            None => material_index[material],
+        };
+        let name = o["name"].as_str().unwrap();
+        nodes.push(json!({"name": name, "mesh": i}));
+        meshes.push(json!({"name": name, "primitives": [{"attributes": {"POSITION": 2 * i}, "indices": 2 * i + 1, "material": material}]}));
+        accessors.push(json!({"bufferView": 0, "byteOffset": 48 * i, "componentType": 5126, "count": 4, "type": "VEC3", "min": nums(&lo), "max": nums(&hi)}));
+        accessors
+            .push(json!({"bufferView": 1, "byteOffset": 12 * i, "componentType": 5123, "count": 6, "type": "SCALAR"}));
+    }
+    let cam = &src["camera"];
+    let position: Vec<f32> = (0..3).map(|k| cam["position"][k].as_f64().unwrap() as f32).collect();
+    assert!(cam["look_at"][2].as_f64().unwrap() > position[2] as f64, "the camera looks along +z");
+    nodes
+        .push(json!({"name": "camera", "camera": 0, "translation": nums(&position), "rotation": [0.0, 1.0, 0.0, 0.0]}));
+    let fov = (cam["fov"].as_f64().unwrap() as f32).to_radians();
+    let aspect = cam["width"].as_f64().unwrap() as f32 / cam["height"].as_f64().unwrap() as f32;
+    let n_nodes = nodes.len();
+    let (pos_len, idx_len) = (positions.len(), indices.len());
+    let mut bin = positions;
+    bin.extend(indices);
+    let gltf = json!({
+        "asset": {
+            "version": "2.0",
+            "generator": "prism tests/gltf.rs cornell_export, from scenes/cornell-box.json",
+            "copyright": "Geometry, camera and spectra: Cornell University Program of Computer Graphics, 'Cornell Box Data'"
+        },
+        "extensionsUsed": ["KHR_materials_emissive_strength"],
+        "scene": 0,
+        "scenes": [{"name": "cornell-box", "nodes": (0..n_nodes).collect::<Vec<_>>()}],
+        "nodes": nodes,
+        "cameras": [{"name": "camera", "type": "perspective", "perspective": {"yfov": num(fov), "aspectRatio": num(aspect), "znear": 1.0}}],
+        "meshes": meshes,
+        "materials": materials,
+        "accessors": accessors,
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": pos_len, "target": 34962},
+            {"buffer": 0, "byteOffset": pos_len, "byteLength": idx_len, "target": 34963}
+        ],
+        "buffers": [{"byteLength": bin.len(), "uri": "cornell-box.bin"}]
+    });
+    (gltf, bin)
+}
+
+#[test]
+fn cornell_export_is_current() {
+    let (gltf, bin) = cornell_export();
+    let (gltf_path, bin_path) = (dir().join("cornell-box.gltf"), dir().join("cornell-box.bin"));
+    if std::env::var_os("PRISM_WRITE_GLTF").is_some() {
+        std::fs::write(&gltf_path, serde_json::to_string_pretty(&gltf).unwrap() + "\n").unwrap();
+        std::fs::write(&bin_path, &bin).unwrap();
+    }
+    assert_eq!(read_json(&gltf_path), gltf, "stale: rerun with PRISM_WRITE_GLTF=1");
+    assert_eq!(std::fs::read(&bin_path).unwrap(), bin, "stale: rerun with PRISM_WRITE_GLTF=1");
+}
+
+const K: u32 = 16;
+const SPP: u32 = 64;
+const BLOCK: u32 = 8;
+
+fn block_stats(scene: &Scene, seed: u64) -> BlockStats {
+    let passes = render_passes(scene, scenes::integrator("path").as_ref(), SPP, K, seed, 0);
+    BlockStats::from_passes(&passes, 32, 32, BLOCK)
+}
+
+/// The z-test both ways: `a` and `b` agree, and `b` scaled by 1.02 (a
+/// deliberate 2 % bias, the negative control) does not.
+fn assert_agree_and_control_fails(what: &str, a: &BlockStats, b: &BlockStats) {
+    let same = compare(a, b);
+    eprintln!("{what}: {same}");
+    assert!(same.passed, "{what}: {same}");
+    let biased = compare(a, &b.scaled(1.02));
+    eprintln!("{what}, b x 1.02: {biased}");
+    assert!(!biased.passed, "{what}: the negative control passed: {biased}");
+}
+
+fn scene_at_32(mut b: prism::scene::SceneBuilder) -> Scene {
+    b.set_resolution(32, 32);
+    b.build()
+}
+
+/// With its measured spectra (extras.prism) the export is the JSON scene:
+/// the same spectra, triangles, camera. Different seeds make the two
+/// renders independent.
+#[test]
+fn cornell_gltf_with_spectra_matches_json_scene() {
+    let gltf = scene_at_32(load("cornell-box.gltf").builder);
+    let json = scenes::scene("cornell-box.json", 32, 32);
+    assert_eq!(gltf.triangle_count(), json.triangle_count());
+    assert_eq!(gltf.lights.len(), json.lights.len());
+    assert_agree_and_control_fails("cornell glTF (spectra) vs JSON", &block_stats(&gltf, 1), &block_stats(&json, 1001));
+}
+
+/// What any other glTF reader sees: RGB only. Without the extras the export
+/// must match a JSON variant of the box whose spectra are replaced by the
+/// same RGB values (the measured spectra themselves cannot be compared: a
+/// reflectance upsampled from RGB is metameric to the measured one under
+/// D65, not under the box's warm light).
+#[test]
+fn cornell_gltf_rgb_matches_json_rgb_variant() {
+    let mut v = read_json(&dir().join("cornell-box.gltf"));
+    for m in v["materials"].as_array_mut().unwrap() {
+        m.as_object_mut().unwrap().remove("extras");
+    }
+    let g = parse(&v, "cornell-box.gltf (no extras)").unwrap();
+    let gltf = scene_at_32(g.builder);
+
+    let mut src = read_json(&Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.json"));
+    for name in ["white", "red", "green"] {
+        let rgb = reflectance_rgb(&tabulated(&src["spectra"][name]));
+        src["spectra"][name] = json!({"rgb": rgb});
+    }
+    let (factor, strength) = emissive_split(emission_rgb(&tabulated(&src["spectra"]["light"])));
+    src["spectra"]["light"] = json!({"rgb": factor.map(|c| c * strength)});
+    let b = parse_scene(&src.to_string(), "cornell-box.json (rgb)", &dir()).unwrap_or_else(|e| panic!("{e}"));
+    let json = scene_at_32(b);
+    assert_agree_and_control_fails(
+        "cornell glTF (RGB) vs JSON (RGB)",
+        &block_stats(&gltf, 1),
+        &block_stats(&json, 1001),
+    );
+}
