@@ -143,7 +143,7 @@ fn connect(
         let mut q = if source.is_infinite() {
             Vertex::environment(i, ls.p, -ls.wi, beta, 0.0)
         } else {
-            Vertex::light(i, ls.p, ls.n, beta, 0.0)
+            Vertex::light(i, ls.point(), beta, 0.0)
         };
         q.pdf_fwd = q.pdf_light_origin(scene, pt);
         let l = pt.beta * pt.f(scene, &q, lambda, TransportMode::Radiance) * q.beta * ls.wi.dot(pt.si.frame.n).abs();
@@ -151,9 +151,9 @@ fn connect(
             return None;
         }
         let visible = if source.is_infinite() {
-            scene.escapes(pt.p(), pt.si.ng, ls.wi)
+            scene.escapes(pt.si.point(), ls.wi)
         } else {
-            scene.unoccluded(pt.p(), pt.si.ng, ls.p, ls.n)
+            scene.unoccluded(pt.si.point(), ls.point())
         };
         if !visible {
             return None;
@@ -171,7 +171,7 @@ fn connect(
             * pt.f(scene, qs, lambda, TransportMode::Radiance)
             * pt.beta
             * g;
-        if l.is_black() || !scene.unoccluded(qs.p(), qs.si.ng, pt.p(), pt.si.ng) {
+        if l.is_black() || !scene.unoccluded(qs.si.point(), pt.si.point()) {
             return None;
         }
         Connection { l, splat: None, sampled: None }

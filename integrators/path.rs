@@ -135,7 +135,7 @@ fn next_event(
         return SampledSpectrum::ZERO;
     }
     let visible =
-        if light.is_infinite() { scene.escapes(si.p, si.ng, ls.wi) } else { scene.unoccluded(si.p, si.ng, ls.p, ls.n) };
+        if light.is_infinite() { scene.escapes(si.point(), ls.wi) } else { scene.unoccluded(si.point(), ls.point()) };
     if !visible {
         return SampledSpectrum::ZERO;
     }

@@ -23,7 +23,7 @@
 //! triangles (zero area, non-finite vertices) are left out of the BVH: they can
 //! never be hit, and a renderer could not compute their normal anyway.
 
-use crate::geometry::Ray;
+use crate::geometry::{gamma, Ray};
 // `UVec2` is named unqualified inside obvhs's `traverse!`.
 use glam::{DVec3, UVec2, Vec3A, Vec3Swizzles, Vec4};
 use obvhs::{
@@ -308,8 +308,29 @@ impl PreparedRay {
         }
         let rcp = 1.0 / det;
         let t = t_scaled * rcp;
-        // The division can round to 0 or up to t_max.
-        (t > 0.0 && t < t_max).then_some((t, v * rcp, w * rcp))
+        // The division can round up to t_max. And t itself carries rounding
+        // error: accept it only when conservatively positive, t > delta_t
+        // (pbrt-v4 section 6.8.7, the bounds of its `IntersectTriangle`), so
+        // a ray leaving a surface never re-hits it at t ~ 0 whatever the
+        // scene's scale (see `offset_ray_origin`).
+        (t > Self::delta_t(x, y, z, sz, uvw, rcp) && t < t_max).then_some((t, v * rcp, w * rcp))
+    }
+
+    /// Bound on the rounding error of t from the sheared vertex coordinates
+    /// `x`, `y`, the unscaled `z` with its scale `sz`, the edge functions `e`
+    /// and 1 / det. As pbrt-v4's, except that the shear's error follows the
+    /// unscaled z the shear multiplies (pbrt uses the scaled z there, which
+    /// is loose for short directions and not conservative for long ones).
+    #[inline(always)]
+    fn delta_t(x: Vec3A, y: Vec3A, z: Vec3A, sz: f32, e: Vec3A, rcp: f32) -> f32 {
+        let (max_x, max_y, max_z) = (x.abs().max_element(), y.abs().max_element(), z.abs().max_element());
+        let max_zs = max_z * sz.abs();
+        let delta_zs = gamma(3) * max_zs;
+        let delta_x = gamma(5) * (max_x + max_z);
+        let delta_y = gamma(5) * (max_y + max_z);
+        let delta_e = 2.0 * (gamma(2) * max_x * max_y + delta_y * max_x + delta_x * max_y);
+        let max_e = e.abs().max_element();
+        3.0 * (gamma(3) * max_e * max_zs + delta_e * max_zs + delta_zs * max_e) * rcp.abs()
     }
 }
 

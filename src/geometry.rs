@@ -51,40 +51,78 @@ impl Frame {
     }
 }
 
-/// Offset a spawned ray's origin off the surface so it cannot re-hit it:
-/// Wachter & Binder, "A Fast and Robust Method for Avoiding Self-Intersection",
-/// Ray Tracing Gems ch. 6 (listing 6-1). `p` is the hit point, best computed
-/// from barycentrics (b0 v0 + b1 v1 + b2 v2: a few ulps of error, which the
-/// chapter's constants cover) rather than o + t d (error grows with t and |o|).
-/// `n` is the unit geometric normal, `w` the direction the new ray leaves in;
-/// the offset goes to w's side.
-///
-/// Each coordinate moves by int_scale * n_i ulps, which scales with the
-/// coordinate's magnitude as the intersection error does; near the origin,
-/// where ulps become tiny (and denormal), by float_scale * n_i instead.
+/// gamma(n) = n eps / (1 - n eps) with eps = 2^-24 (half an ulp of 1): the
+/// relative error bound of n successive f32 roundings (Higham 2002, pbrt-v4
+/// section 6.8.1).
 #[inline]
-pub fn offset_ray_origin(p: Vec3A, n: Vec3A, w: Vec3A) -> Vec3A {
-    // The chapter's constants: below |x| = 1/32 use a fixed offset of 2^-16;
-    // above, 256 ulps along a unit normal.
-    const ORIGIN: f32 = 1.0 / 32.0;
-    const FLOAT_SCALE: f32 = 1.0 / 65536.0;
-    const INT_SCALE: f32 = 256.0;
-    debug_assert!((n.length_squared() - 1.0).abs() < 1e-3, "offset_ray_origin wants a unit normal, got {n}");
-    let n = if n.dot(w) < 0.0 { -n } else { n };
-    let offset = |p: f32, n: f32| -> f32 {
-        if p.abs() < ORIGIN {
-            p + FLOAT_SCALE * n
+pub const fn gamma(n: u32) -> f32 {
+    let ne = n as f32 * (f32::EPSILON * 0.5);
+    ne / (1.0 - ne)
+}
+
+/// A conservative bound, per axis, on the rounding error of the point
+/// b0 v0 + b1 v1 + b2 v2 interpolated from a triangle's vertices (pbrt-v4
+/// section 6.8.5): gamma(7) (|b0 v0| + |b1 v1| + |b2 v2|). It follows the
+/// magnitude of the vertices, not of the point, so it stays right for points
+/// near the origin on large triangles and is tiny for tiny scenes.
+#[inline]
+pub fn barycentric_error(v: &[Vec3A; 3], b0: f32, b1: f32, b2: f32) -> Vec3A {
+    ((v[0] * b0).abs() + (v[1] * b1).abs() + (v[2] * b2).abs()) * gamma(7)
+}
+
+/// A point that rays leave from or arrive at: position, a bound on its
+/// rounding error per axis, and the geometric normal (zero off surfaces: the
+/// pinhole, a point light, the environment's far point).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfacePoint {
+    pub p: Vec3A,
+    pub p_error: Vec3A,
+    pub n: Vec3A,
+}
+
+impl SurfacePoint {
+    /// An exactly known point off any surface.
+    #[inline]
+    pub fn at(p: Vec3A) -> Self {
+        Self { p, p_error: Vec3A::ZERO, n: Vec3A::ZERO }
+    }
+
+    /// The origin of a ray leaving towards `w`: off the surface when there is
+    /// one (`offset_ray_origin`), else the point itself.
+    #[inline]
+    pub fn spawn_origin(&self, w: Vec3A) -> Vec3A {
+        if self.n == Vec3A::ZERO {
+            self.p
         } else {
-            // Float bits are sign-magnitude and monotonic in magnitude, so
-            // adding k to the bits of |p| moves p by k ulps away from 0; for
-            // negative p, subtracting moves it toward +. `as` truncates, as
-            // the chapter's int conversion does.
-            let of_i = (INT_SCALE * n) as i32;
-            let bits = p.to_bits() as i32;
-            f32::from_bits(bits.wrapping_add(if p < 0.0 { -of_i } else { of_i }) as u32)
+            offset_ray_origin(self.p, self.p_error, self.n, w)
+        }
+    }
+}
+
+/// Offset a spawned ray's origin off the surface so it cannot re-hit it
+/// (pbrt-v4 section 6.8.6, `OffsetRayOrigin`): move `p` along the unit
+/// geometric normal `n`, to the side of the direction `w`, by
+/// d = |n| . p_error, the extent of the error box of `p` along n; then round
+/// each moved coordinate once more away from `p`, so the rounding of the
+/// addition cannot bring it back inside the box. The true surface point lies
+/// in the box, so the origin is on `w`'s side of the surface; the remaining
+/// risk, a re-hit at t ~ 0 from the rounding of the intersection test
+/// itself, is removed by that test's conservative t > delta_t (src/accel.rs).
+#[inline]
+pub fn offset_ray_origin(p: Vec3A, p_error: Vec3A, n: Vec3A, w: Vec3A) -> Vec3A {
+    let d = n.abs().dot(p_error);
+    let offset = if n.dot(w) < 0.0 { -d * n } else { d * n };
+    let po = p + offset;
+    let away = |po: f32, o: f32| {
+        if o > 0.0 {
+            po.next_up()
+        } else if o < 0.0 {
+            po.next_down()
+        } else {
+            po
         }
     };
-    Vec3A::new(offset(p.x, n.x), offset(p.y, n.y), offset(p.z, n.z))
+    Vec3A::new(away(po.x, offset.x), away(po.y, offset.y), away(po.z, offset.z))
 }
 
 #[cfg(test)]
@@ -104,17 +142,21 @@ mod tests {
     }
 
     #[test]
-    fn offset_goes_to_w_side_and_scales_with_magnitude() {
+    fn offset_goes_to_w_side_by_the_error_bound() {
         let n = Vec3A::new(0.36, 0.48, 0.8);
+        let v = [Vec3A::new(1.0, -2.0, 0.5), Vec3A::new(-3.0, 0.25, 1.0), Vec3A::new(0.5, 2.0, -4.0)];
         for scale in [0.0f32, 1e-3, 0.5, 1.0, 1e3, 1e5, -1e5] {
-            let p = Vec3A::new(1.0, -2.0, 0.5) * scale;
+            let v = v.map(|x| x * scale);
+            let (b0, b1, b2) = (0.2, 0.3, 0.5);
+            let p = v[0] * b0 + v[1] * b1 + v[2] * b2;
+            let e = barycentric_error(&v, b0, b1, b2);
             for w in [n, -n, Vec3A::new(0.0, 0.0, 1.0), Vec3A::new(0.0, 0.0, -1.0)] {
-                let q = offset_ray_origin(p, n, w);
+                let q = offset_ray_origin(p, e, n, w);
                 let side = (q - p).dot(n) * n.dot(w).signum();
-                assert!(side > 0.0, "p = {p}, w = {w}, q = {q}");
-                // Never more than int_scale ulps (or float_scale) per axis.
-                let bound = (p.abs() * (256.0 * f32::EPSILON)).max(Vec3A::splat(1.0 / 65536.0));
-                assert!(((q - p).abs() - bound).max_element() <= 0.0, "{p} -> {q}");
+                assert!(side > 0.0 || (scale == 0.0 && q == p), "p = {p}, w = {w}, q = {q}");
+                // At least the error box's extent along n, and not much more.
+                let d = n.abs().dot(e);
+                assert!(side >= d * 0.999 && side <= 2.0 * d + 1e-30, "{p} -> {q}: {side} vs {d}");
             }
         }
     }

@@ -7,7 +7,7 @@
 //!   area and solid angle) for light tracing and BDPT light subpaths.
 //! Lights are an enum matched in the hot loop; one light per emissive triangle.
 
-use crate::geometry::{Frame, Ray};
+use crate::geometry::{barycentric_error, Frame, Ray, SurfacePoint};
 use crate::sampling::{cosine_hemisphere, uniform_sphere, uniform_triangle, UNIFORM_SPHERE_PDF};
 use crate::spectrum::{SampledSpectrum, SampledWavelengths, Spectrum};
 use glam::{Vec2, Vec3A};
@@ -58,16 +58,28 @@ pub struct LightLiSample {
     /// Distance to the light point (infinite for the environment).
     pub dist: f32,
     pub p: Vec3A,
+    /// Bound on the rounding error of `p` (`barycentric_error`).
+    pub p_error: Vec3A,
     /// Surface normal at the light point (zero for point/environment).
     pub n: Vec3A,
     /// Solid-angle density at the reference point (for a delta light: 1).
     pub pdf_w: f32,
 }
 
+impl LightLiSample {
+    #[inline]
+    pub fn point(&self) -> SurfacePoint {
+        SurfacePoint { p: self.p, p_error: self.p_error, n: self.n }
+    }
+}
+
 /// An emitted ray for light subpaths.
 #[derive(Clone, Copy, Debug)]
 pub struct LightLeSample {
+    /// The ray's origin is on the emitter (not offset).
     pub ray: Ray,
+    /// Bound on the rounding error of the origin (`barycentric_error`).
+    pub p_error: Vec3A,
     pub n: Vec3A,
     pub l: SampledSpectrum,
     /// Area density of the origin (delta lights: 1).
@@ -120,6 +132,7 @@ impl Light {
             Light::Area(a) => {
                 let (b0, b1) = uniform_triangle(u);
                 let p = a.v[0] * b0 + a.v[1] * b1 + a.v[2] * (1.0 - b0 - b1);
+                let p_error = barycentric_error(&a.v, b0, b1, 1.0 - b0 - b1);
                 let to = p - p_ref;
                 let dist2 = to.length_squared();
                 if dist2 == 0.0 {
@@ -133,7 +146,7 @@ impl Light {
                     return None;
                 }
                 let pdf_w = dist2 / (cos_l.abs() * a.area);
-                Some(LightLiSample { l, wi, dist, p, n: a.n, pdf_w })
+                Some(LightLiSample { l, wi, dist, p, p_error, n: a.n, pdf_w })
             }
             Light::Point(pl) => {
                 let to = pl.p - p_ref;
@@ -143,7 +156,15 @@ impl Light {
                 }
                 let dist = dist2.sqrt();
                 let l = pl.intensity.sample(lambda) / dist2;
-                Some(LightLiSample { l, wi: to / dist, dist, p: pl.p, n: Vec3A::ZERO, pdf_w: 1.0 })
+                Some(LightLiSample {
+                    l,
+                    wi: to / dist,
+                    dist,
+                    p: pl.p,
+                    p_error: Vec3A::ZERO,
+                    n: Vec3A::ZERO,
+                    pdf_w: 1.0,
+                })
             }
             Light::Environment(e) => {
                 let wi = uniform_sphere(u);
@@ -152,6 +173,7 @@ impl Light {
                     wi,
                     dist: f32::INFINITY,
                     p: p_ref + wi * (2.0 * e.radius),
+                    p_error: Vec3A::ZERO,
                     n: Vec3A::ZERO,
                     pdf_w: UNIFORM_SPHERE_PDF,
                 })
@@ -183,6 +205,7 @@ impl Light {
             Light::Area(a) => {
                 let (b0, b1) = uniform_triangle(u1);
                 let p = a.v[0] * b0 + a.v[1] * b1 + a.v[2] * (1.0 - b0 - b1);
+                let p_error = barycentric_error(&a.v, b0, b1, 1.0 - b0 - b1);
                 let (u, flip) = if a.two_sided {
                     // Pick a side with the first coordinate, then remap it.
                     if u2.x < 0.5 {
@@ -201,12 +224,20 @@ impl Light {
                 if pdf_dir == 0.0 {
                     return None;
                 }
-                Some(LightLeSample { ray: Ray::new(p, d), n, l: a.le.sample(lambda), pdf_pos: 1.0 / a.area, pdf_dir })
+                Some(LightLeSample {
+                    ray: Ray::new(p, d),
+                    p_error,
+                    n,
+                    l: a.le.sample(lambda),
+                    pdf_pos: 1.0 / a.area,
+                    pdf_dir,
+                })
             }
             Light::Point(pl) => {
                 let d = uniform_sphere(u2);
                 Some(LightLeSample {
                     ray: Ray::new(pl.p, d),
+                    p_error: Vec3A::ZERO,
                     n: Vec3A::ZERO,
                     l: pl.intensity.sample(lambda),
                     pdf_pos: 1.0,
@@ -222,6 +253,7 @@ impl Light {
                 let o = e.center - d * e.radius + frame.s * disk.x + frame.t * disk.y;
                 Some(LightLeSample {
                     ray: Ray::new(o, d),
+                    p_error: Vec3A::ZERO,
                     n: d,
                     l: e.le.sample(lambda),
                     pdf_pos: 1.0 / (PI * e.radius * e.radius),

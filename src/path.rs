@@ -52,7 +52,7 @@
 //! wavelengths (TRANSPORT-NOTES §7).
 
 use crate::camera::CameraWiSample;
-use crate::geometry::{offset_ray_origin, Frame, Ray};
+use crate::geometry::{Frame, Ray, SurfacePoint};
 use crate::integrators::russian_roulette;
 use crate::light::Light;
 use crate::materials::TransportMode;
@@ -108,23 +108,24 @@ impl Vertex {
         Self { kind, si, beta, delta: false, pdf_fwd, pdf_rev: 0.0 }
     }
 
-    fn endpoint(kind: VertexKind, p: Vec3A, n: Vec3A, wo: Vec3A, light: Option<u32>) -> SurfaceInteraction {
+    fn endpoint(kind: VertexKind, at: SurfacePoint, wo: Vec3A, light: Option<u32>) -> SurfaceInteraction {
+        let SurfacePoint { p, p_error, n } = at;
         let frame = if n == Vec3A::ZERO { Frame::from_normal(Vec3A::Z) } else { Frame::from_normal(n) };
         debug_assert!(kind != VertexKind::Surface);
-        SurfaceInteraction { p, t: 0.0, ng: n, frame, wo, material: u32::MAX, light }
+        SurfaceInteraction { p, p_error, t: 0.0, ng: n, frame, wo, material: u32::MAX, light }
     }
 
     /// The pinhole as the first camera vertex, with throughput `beta`.
     pub fn camera(scene: &Scene, beta: SampledSpectrum) -> Self {
-        let si = Self::endpoint(VertexKind::Camera, scene.camera.position, Vec3A::ZERO, Vec3A::ZERO, None);
+        let si = Self::endpoint(VertexKind::Camera, SurfacePoint::at(scene.camera.position), Vec3A::ZERO, None);
         Self::new(VertexKind::Camera, si, beta, 0.0)
     }
 
-    /// A light origin (area or point light `light` at `p`, surface normal
-    /// `n`, zero for a point light), throughput `beta` = Le / pdf and
-    /// origin density `pdf_fwd`.
-    pub fn light(light: u32, p: Vec3A, n: Vec3A, beta: SampledSpectrum, pdf_fwd: f32) -> Self {
-        let si = Self::endpoint(VertexKind::Light, p, n, Vec3A::ZERO, Some(light));
+    /// A light origin (area or point light `light` at `at`, whose normal is
+    /// zero for a point light), throughput `beta` = Le / pdf and origin
+    /// density `pdf_fwd`.
+    pub fn light(light: u32, at: SurfacePoint, beta: SampledSpectrum, pdf_fwd: f32) -> Self {
+        let si = Self::endpoint(VertexKind::Light, at, Vec3A::ZERO, Some(light));
         Self::new(VertexKind::Light, si, beta, pdf_fwd)
     }
 
@@ -132,7 +133,7 @@ impl Vertex {
     /// direction its light travels into the scene, `p` any point far away
     /// along -w_in.
     pub fn environment(light: u32, p: Vec3A, w_in: Vec3A, beta: SampledSpectrum, pdf_fwd: f32) -> Self {
-        let si = Self::endpoint(VertexKind::Environment, p, Vec3A::ZERO, w_in, Some(light));
+        let si = Self::endpoint(VertexKind::Environment, SurfacePoint::at(p), w_in, Some(light));
         Self::new(VertexKind::Environment, si, beta, pdf_fwd)
     }
 
@@ -377,13 +378,12 @@ pub fn light_subpath(
         (v, v.beta / le.pdf_pos, le.pdf_pos)
     } else {
         let n = if light.is_delta_position() { Vec3A::ZERO } else { le.n };
-        let v = Vertex::light(i, le.ray.o, n, le.l / (pmf * le.pdf_pos), pmf * le.pdf_pos);
+        let at = SurfacePoint { p: le.ray.o, p_error: le.p_error, n };
+        let v = Vertex::light(i, at, le.l / (pmf * le.pdf_pos), pmf * le.pdf_pos);
         let cos = if n == Vec3A::ZERO { 1.0 } else { n.dot(le.ray.d).abs() };
-        if n != Vec3A::ZERO {
-            // `sample_le` leaves the origin on the emitter: move it off, or
-            // the ray may hit its own triangle at t ~ 0.
-            ray.o = offset_ray_origin(ray.o, n, ray.d);
-        }
+        // `sample_le` leaves the origin on the emitter: move it off, or the
+        // ray may hit its own triangle at t ~ 0.
+        ray.o = at.spawn_origin(ray.d);
         (v, v.beta * (cos / le.pdf_dir), le.pdf_dir)
     };
     path.push(origin);
@@ -484,7 +484,7 @@ pub fn connect_to_camera(scene: &Scene, v: &Vertex, lambda: &SampledWavelengths)
     let camera = Vertex::camera(scene, SampledSpectrum::splat(cs.we / cs.pdf_w));
     let cos = if v.is_on_surface() { cs.wi.dot(v.si.frame.n).abs() } else { 1.0 };
     let l = v.beta * v.f(scene, &camera, lambda, TransportMode::Importance) * camera.beta * cos;
-    if l.is_black() || !scene.unoccluded(v.p(), v.si.ng, camera.p(), Vec3A::ZERO) {
+    if l.is_black() || !scene.unoccluded(v.si.point(), camera.si.point()) {
         return None;
     }
     Some((Splat { raster: cs.raster, l }, camera))

@@ -148,6 +148,13 @@ pub fn compare_to_value(a: &BlockStats, value: [f64; 3]) -> Comparison {
     compare_with(a, 1, |_| (value, [0.0; 3]))
 }
 
+/// Compares block statistics with exact values, one per block (row-major),
+/// as one of `family` comparisons made together.
+pub fn compare_to_values(a: &BlockStats, values: &[[f64; 3]], family: usize) -> Comparison {
+    assert_eq!(a.mean.len(), values.len(), "one value per block");
+    compare_with(a, family, |i| (values[i], [0.0; 3]))
+}
+
 fn compare_with(a: &BlockStats, family: usize, reference: impl Fn(usize) -> ([f64; 3], [f64; 3])) -> Comparison {
     let mut n = 0;
     let mut worst = (0.0f64, (0, 0, 0));

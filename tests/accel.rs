@@ -5,7 +5,7 @@
 
 use glam::{Affine3A, Vec3A};
 use prism::accel::{intersect_triangle, is_degenerate, Accel, TriangleHit};
-use prism::geometry::{offset_ray_origin, Ray};
+use prism::geometry::{barycentric_error, offset_ray_origin, Ray};
 use prism::shapes::Mesh;
 use rand_xoshiro::rand_core::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
@@ -55,6 +55,10 @@ fn geometric_normal(t: &[Vec3A; 3]) -> Vec3A {
 
 fn hit_point(t: &[Vec3A; 3], h: &TriangleHit) -> Vec3A {
     t[0] * (1.0 - h.b1 - h.b2) + t[1] * h.b1 + t[2] * h.b2
+}
+
+fn hit_point_error(t: &[Vec3A; 3], h: &TriangleHit) -> Vec3A {
+    barycentric_error(t, 1.0 - h.b1 - h.b2, h.b1, h.b2)
 }
 
 /// Closest hit by testing every triangle with the same watertight test; ties
@@ -378,10 +382,10 @@ fn offset_rays_never_rehit_their_surface() {
                         .intersect(&first, f32::INFINITY)
                         .unwrap_or_else(|| panic!("{ctx}: escaped a closed mesh"));
                     let tri = &tris[h.prim as usize];
-                    let (p, n) = (hit_point(tri, &h), geometric_normal(tri));
+                    let (p, e, n) = (hit_point(tri, &h), hit_point_error(tri, &h), geometric_normal(tri));
                     // Outward: nothing else is on that side of a convex mesh.
                     let w_out = rng.cosine_around(n);
-                    let out = Ray::new(offset_ray_origin(p, n, w_out), w_out);
+                    let out = Ray::new(offset_ray_origin(p, e, n, w_out), w_out);
                     assert!(
                         accel.intersect(&out, f32::INFINITY).is_none(),
                         "{ctx} ray {i}: outgoing ray re-hit the surface: {:?}",
@@ -390,13 +394,13 @@ fn offset_rays_never_rehit_their_surface() {
                     assert!(!accel.occluded(&out, f32::INFINITY), "{ctx} ray {i}");
                     // Inward: must cross the mesh and hit another face.
                     let w_in = rng.cosine_around(-n);
-                    let inward = Ray::new(offset_ray_origin(p, n, w_in), w_in);
+                    let inward = Ray::new(offset_ray_origin(p, e, n, w_in), w_in);
                     let offset = (inward.o - p).length();
                     let Some(h2) = accel.intersect(&inward, f32::INFINITY) else {
-                        // The chapter's offset is a vector of per-axis ulps,
-                        // not exactly along n, so within about its length of
-                        // a convex edge it can leave the solid through the
-                        // neighbouring face. Anywhere else escaping is a bug.
+                        // Within about the offset's length of a convex edge
+                        // the origin can be outside the neighbouring face and
+                        // leave the solid through it. Anywhere else escaping
+                        // is a bug.
                         let to_edge = tris
                             .iter()
                             .filter(|t| geometric_normal(t).dot(n) < 0.999)

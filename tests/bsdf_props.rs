@@ -10,6 +10,7 @@
 
 mod common;
 
+use common::albedo::{albedo_quadrature, Rough, Q_PHI, Q_T};
 use common::chi2::{Accuracy, SphereGrid};
 use common::{
     conductor, dielectric, diffuse, dir, dispersive_dielectric, lambda, mirror, rel_diff, seed, spectral_conductor,
@@ -33,13 +34,6 @@ const ONE_MINUS: f32 = 1.0 - 1.0 / (1u32 << 24) as f32;
 // ---------------------------------------------------------------- parameter sets
 
 /// A non-delta BSDF with what the quadratures need to know about its lobes.
-struct Rough {
-    name: String,
-    bsdf: Bsdf,
-    alpha_min: f32,
-    /// Relative IOR of a dielectric (None: reflection only).
-    eta: Option<f32>,
-}
 
 fn rough_set() -> Vec<Rough> {
     let mut v = vec![Rough { name: "diffuse".into(), bsdf: diffuse(0.8), alpha_min: 1.0, eta: None }];
@@ -320,46 +314,6 @@ fn negative_control_reciprocity() {
 
 // ---------------------------------------------------------------- energy
 
-const Q_T: usize = 32;
-const Q_PHI: usize = 64;
-
-/// Integral over the sphere of g(wi) (an albedo integrand), by adaptive
-/// cubature on grids refined around the reflection and transmission lobes
-/// where these are narrow; each side of the surface on its own grid then.
-fn lobe_quadrature(r: &Rough, wo: Vec3A, g: &dyn Fn(Vec3A) -> f64, split: usize) -> f64 {
-    // The cubature's error estimate (coarse vs refined) is far above its
-    // error; 1e-3 relative keeps the total well below the checks' 2e-3.
-    let acc = Accuracy { abs: 1e-7, rel: 1e-3, sqrt_scale: 0.0 };
-    let grid = |axis: Vec3A, width: f64| (width < 0.15).then(|| SphereGrid::for_lobe(axis, width, Q_T, Q_PHI));
-    let a = r.alpha_min as f64;
-    let reflection = grid(Vec3A::new(-wo.x, -wo.y, wo.z), 2.0 * a);
-    let transmission = r.eta.and_then(|eta| match refract(wo, Vec3A::Z, eta) {
-        Some((wt, etap)) => grid(wt, 2.0 * a * (1.0 - 1.0 / etap as f64).abs()),
-        // Total internal reflection at the macro normal: near eta = 1 the
-        // transmitted lobe hugs -wo, otherwise it is spread out.
-        None if (eta - 1.0).abs() < 0.05 => grid(-wo, 2.0 * a * (eta as f64 - 1.0).abs()),
-        None => None,
-    });
-    if reflection.is_none() && transmission.is_none() {
-        return SphereGrid::equal_area(Q_T, Q_PHI).integrate_split(g, acc, split);
-    }
-    let or_equal_area = |g: Option<SphereGrid>| g.unwrap_or_else(|| SphereGrid::equal_area(Q_T, Q_PHI));
-    let same = |w: Vec3A| if w.z * wo.z > 0.0 { g(w) } else { 0.0 };
-    let opposite = |w: Vec3A| if w.z * wo.z < 0.0 { g(w) } else { 0.0 };
-    let reflected = or_equal_area(reflection).integrate_split(&same, acc, split);
-    if r.eta.is_none() {
-        return reflected;
-    }
-    reflected + or_equal_area(transmission).integrate_split(&opposite, acc, split)
-}
-
-/// Directional albedo of the importance-mode BSDF (energy leaving per unit
-/// energy arriving along wo; Veach 1997 §5.2) by quadrature, averaged over the
-/// four wavelengths.
-fn albedo_quadrature(r: &Rough, b: &dyn TestBsdf, wo: Vec3A, split: usize) -> f64 {
-    lobe_quadrature(r, wo, &|wi| (b.eval(wo, wi, TransportMode::Importance).average() * wi.z.abs()) as f64, split)
-}
-
 /// The same albedo by the BSDF's own sampler, with its standard error.
 fn albedo_sampled(b: &Bsdf, wo: Vec3A, mode: TransportMode, n: usize) -> (f64, f64) {
     let mut s = rng(11, 12, 13);
@@ -385,10 +339,10 @@ const ALBEDO_WO: [(f32, f32); 6] = [(1.0, 0.0), (0.7, 0.3), (0.2, 1.3), (0.03, 2
 /// eta's transmission has a caustic-like edge at the largest deflection
 /// (microfacets seen edge-on) that the coarse cubature can under-resolve.
 fn check_albedo(r: &Rough, b: &dyn TestBsdf, wo: Vec3A, sampled: Option<(f64, f64)>) -> Result<f64, String> {
-    let mut a = albedo_quadrature(r, b, wo, 1);
+    let mut a = albedo_quadrature(r, b, wo, TransportMode::Importance, 1);
     if let Some((m, se)) = sampled {
         if (a - m).abs() > 5.0 * se + 2e-3 {
-            a = albedo_quadrature(r, b, wo, 6);
+            a = albedo_quadrature(r, b, wo, TransportMode::Importance, 6);
             if (a - m).abs() > 5.0 * se + 2e-3 {
                 return Err(format!("{} wo {wo:?}: quadrature {a} vs sampled {m} +- {se}", r.name));
             }

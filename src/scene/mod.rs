@@ -11,7 +11,7 @@ pub use json::{load_scene, parse_scene, LoadError};
 
 use crate::accel::Accel;
 use crate::camera::Camera;
-use crate::geometry::{offset_ray_origin, Frame, Ray};
+use crate::geometry::{barycentric_error, Frame, Ray, SurfacePoint};
 use crate::light::{AreaLight, EnvironmentLight, Light, PointLight};
 use crate::materials::Bsdf;
 use crate::sampling::AliasTable;
@@ -68,6 +68,8 @@ struct TriangleRecord {
 #[derive(Clone, Copy, Debug)]
 pub struct SurfaceInteraction {
     pub p: Vec3A,
+    /// Bound on the rounding error of `p` per axis (`barycentric_error`).
+    pub p_error: Vec3A,
     pub t: f32,
     /// Geometric normal (winding side).
     pub ng: Vec3A,
@@ -84,7 +86,13 @@ impl SurfaceInteraction {
     /// A ray leaving the surface in direction `w`, offset off the surface.
     #[inline]
     pub fn spawn_ray(&self, w: Vec3A) -> Ray {
-        Ray::new(offset_ray_origin(self.p, self.ng, w), w)
+        Ray::new(self.point().spawn_origin(w), w)
+    }
+
+    /// The point with its error bound and geometric normal, for visibility.
+    #[inline]
+    pub fn point(&self) -> SurfacePoint {
+        SurfacePoint { p: self.p, p_error: self.p_error, n: self.ng }
     }
 
     /// Veach's shading-normal correction for adjoint (importance) transport,
@@ -251,6 +259,7 @@ impl Scene {
         }
         Some(SurfaceInteraction {
             p,
+            p_error: barycentric_error(&tri.v, b0, hit.b1, hit.b2),
             t: hit.t,
             ng,
             frame: Frame::from_normal(ns),
@@ -260,22 +269,23 @@ impl Scene {
         })
     }
 
-    /// Whether the segment between two surface points is unobstructed; each
-    /// end is offset off its own surface (normals `n0`, `n1`).
+    /// Whether the segment between two points is unobstructed; each end is
+    /// offset off its own surface (pbrt-v4 `SpawnRayTo` from both ends).
     #[inline]
-    pub fn unoccluded(&self, p0: Vec3A, n0: Vec3A, p1: Vec3A, n1: Vec3A) -> bool {
-        let d = p1 - p0;
-        let o = if n0 == Vec3A::ZERO { p0 } else { offset_ray_origin(p0, n0, d) };
-        let target = if n1 == Vec3A::ZERO { p1 } else { offset_ray_origin(p1, n1, -d) };
+    pub fn unoccluded(&self, a: SurfacePoint, b: SurfacePoint) -> bool {
+        let d = b.p - a.p;
+        let o = a.spawn_origin(d);
+        let target = b.spawn_origin(-d);
         let ray = Ray::new(o, target - o);
         count_ray();
+        // pbrt-v4's ShadowEpsilon: stop just short of the far end.
         !self.accel.occluded(&ray, 1.0 - 1e-4)
     }
 
-    /// Whether a ray leaving a surface point towards infinity escapes.
+    /// Whether a ray leaving a point towards infinity escapes.
     #[inline]
-    pub fn escapes(&self, p: Vec3A, n: Vec3A, w: Vec3A) -> bool {
-        let ray = Ray::new(offset_ray_origin(p, n, w), w);
+    pub fn escapes(&self, a: SurfacePoint, w: Vec3A) -> bool {
+        let ray = Ray::new(a.spawn_origin(w), w);
         count_ray();
         !self.accel.occluded(&ray, f32::INFINITY)
     }

@@ -4,6 +4,7 @@
 //! BSDFs (the negative controls).
 #![allow(dead_code)]
 
+pub mod albedo;
 pub mod chi2;
 
 use glam::{Vec2, Vec3A};
