@@ -5,6 +5,7 @@
 //!   density in solid angle at the reference (next-event estimation);
 //! - `sample_le`: an emitted ray (position and direction densities separately,
 //!   area and solid angle) for light tracing and BDPT light subpaths.
+//!
 //! Lights are an enum matched in the hot loop; one light per emissive triangle.
 
 use crate::geometry::{barycentric_error, Frame, Ray, SurfacePoint};

@@ -222,3 +222,77 @@ mod tests {
         assert!(!compare_to_value(&a, [1.2; 3]).passed);
     }
 }
+
+/// Block statistics of an sRGB image and of its luminance Y alone (the
+/// middle row of the sRGB-to-XYZ matrix in the first channel; the others are
+/// 0 in every pass, so they add z = 0), for `Verdict`.
+#[derive(Clone, Debug)]
+pub struct ColourStats {
+    pub rgb: BlockStats,
+    pub y: BlockStats,
+}
+
+impl ColourStats {
+    pub fn from_passes(passes: &[Image], width: u32, height: u32, block: u32) -> Self {
+        let y: Vec<Image> = passes
+            .iter()
+            .map(|img| img.iter().map(|&p| [luminance(p.map(f64::from)) as f32, 0.0, 0.0]).collect())
+            .collect();
+        Self {
+            rgb: BlockStats::from_passes(passes, width, height, block),
+            y: BlockStats::from_passes(&y, width, height, block),
+        }
+    }
+
+    pub fn scaled(&self, s: f64) -> Self {
+        Self { rgb: self.rgb.scaled(s), y: self.y.scaled(s) }
+    }
+}
+
+/// Y of a linear sRGB colour (ITU-R BT.709 primaries, D65).
+pub fn luminance(p: [f64; 3]) -> f64 {
+    0.212_639 * p[0] + 0.715_169 * p[1] + 0.072_192 * p[2]
+}
+
+/// The rule of VALIDATION.md §1 applied where its assumptions hold. The
+/// chi-square check of sum z^2 assumes n independent normal z; the three
+/// colour channels of a block come from the same samples and are strongly
+/// correlated, and z is Student-t with K-1 dof, which widens sum z^2 beyond
+/// chi-square(n) (false alarms at the percent level). So the full rule
+/// (worst |z| and chi-square) is applied to luminance, one statistic per
+/// block, and the worst-|z| rule to each sRGB channel.
+#[derive(Clone, Debug)]
+pub struct Verdict {
+    pub rgb: Comparison,
+    pub y: Comparison,
+}
+
+impl Verdict {
+    pub fn passed(&self) -> bool {
+        self.rgb.worst_z <= self.rgb.threshold && self.y.passed
+    }
+
+    /// Two estimates, as one of `family` comparisons made together.
+    pub fn versus(a: &ColourStats, b: &ColourStats, family: usize) -> Self {
+        Self { rgb: compare_in_family(&a.rgb, &b.rgb, family), y: compare_in_family(&a.y, &b.y, family) }
+    }
+
+    /// An estimate against exact sRGB colours, one per block (row-major), as
+    /// one of `family` comparisons.
+    pub fn versus_values(a: &ColourStats, rgb: &[[f64; 3]], family: usize) -> Self {
+        let y: Vec<[f64; 3]> = rgb.iter().map(|&c| [luminance(c), 0.0, 0.0]).collect();
+        Self { rgb: compare_to_values(&a.rgb, rgb, family), y: compare_to_values(&a.y, &y, family) }
+    }
+
+    /// An estimate against one exact sRGB colour everywhere.
+    pub fn versus_value(a: &ColourStats, rgb: [f64; 3], family: usize) -> Self {
+        Self::versus_values(a, &vec![rgb; a.rgb.mean.len()], family)
+    }
+}
+
+impl std::fmt::Display for Verdict {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let (r, verdict) = (&self.rgb, if self.passed() { "PASS" } else { "FAIL" });
+        write!(f, "{verdict}: sRGB worst |z| = {:.3} (threshold {:.3}); Y {}", r.worst_z, r.threshold, self.y)
+    }
+}

@@ -33,8 +33,7 @@ const ONE_MINUS: f32 = 1.0 - 1.0 / (1u32 << 24) as f32;
 
 // ---------------------------------------------------------------- parameter sets
 
-/// A non-delta BSDF with what the quadratures need to know about its lobes.
-
+/// The non-delta BSDFs under test.
 fn rough_set() -> Vec<Rough> {
     let mut v = vec![Rough { name: "diffuse".into(), bsdf: diffuse(0.8), alpha_min: 1.0, eta: None }];
     for (ax, ay) in [(0.01, 0.01), (0.05, 0.05), (0.2, 0.2), (0.5, 0.5), (1.0, 1.0), (0.3, 0.1), (0.02, 0.5)] {

@@ -1,16 +1,9 @@
-//! Proofs for `light` (light tracing, integrators/light.rs): the white
-//! furnace, agreement with `path` on the Cornell box, uniform importance
-//! (no cos^4 vignetting error), and the warnings for what a pinhole cannot
-//! see. Statistics follow VALIDATION.md §1 (src/stats.rs); every statistical
-//! test runs a negative control that must be rejected.
-//!
-//! One adjustment to §1: `stats::compare` also checks sum z^2 against
-//! chi-square(n), which assumes the n comparisons independent and normal.
-//! The three colour channels of a block come from the same samples and are
-//! strongly correlated (and z is Student-t with K-1 = 15 dof), which widens
-//! sum z^2 well beyond chi-square(n): false alarms at the percent level. So
-//! a test applies the full rule (worst |z| and chi-square) to luminance, one
-//! statistic per block, and the worst-|z| rule to each sRGB channel.
+//! Proofs for `light` (light tracing, integrators/light.rs): agreement with
+//! `path` on the Cornell box, uniform importance (no cos^4 vignetting
+//! error), and the warnings for what a pinhole cannot see (its white
+//! furnaces are in tests/furnace.rs). Statistics follow VALIDATION.md §1
+//! with the colour rule of `prism::stats::Verdict`; every statistical test
+//! runs a negative control that must be rejected.
 
 #[path = "common/scenes.rs"]
 mod scenes;
@@ -25,7 +18,7 @@ use prism::sampling::Sampler;
 use prism::scene::{Scene, SceneBuilder};
 use prism::shapes::Mesh;
 use prism::spectrum::{SampledSpectrum, SampledWavelengths, Spectrum};
-use prism::stats::{compare, compare_to_value, render_passes, BlockStats, Comparison, Image};
+use prism::stats::{render_passes, ColourStats, Image, Verdict};
 use scenes::{integrator, scene, srgb_of};
 
 const K: u32 = 16;
@@ -37,81 +30,18 @@ fn seed(base: u64) -> u64 {
     base + 1000 * offset
 }
 
-/// Block statistics of passes of a 32 x 32 image: sRGB, and luminance alone
-/// (Y, the middle row of the sRGB-to-XYZ matrix, in the first channel; the
-/// others are 0 in every pass, so they add z = 0).
-struct Stats {
-    rgb: BlockStats,
-    y: BlockStats,
+/// Block statistics (sRGB and luminance, see `prism::stats::Verdict`) of
+/// passes of a 32 x 32 image.
+fn stats(passes: &[Image], block: u32) -> ColourStats {
+    ColourStats::from_passes(passes, 32, 32, block)
 }
 
-impl Stats {
-    fn new(passes: &[Image], block: u32) -> Self {
-        let y: Vec<Image> = passes
-            .iter()
-            .map(|img| img.iter().map(|p| [0.212_639 * p[0] + 0.715_169 * p[1] + 0.072_192 * p[2], 0.0, 0.0]).collect())
-            .collect();
-        Self { rgb: BlockStats::from_passes(passes, 32, 32, block), y: BlockStats::from_passes(&y, 32, 32, block) }
-    }
-
-    fn scaled(&self, s: f64) -> Self {
-        Self { rgb: self.rgb.scaled(s), y: self.y.scaled(s) }
-    }
+fn versus(a: &ColourStats, b: &ColourStats) -> Verdict {
+    Verdict::versus(a, b, 1)
 }
 
-/// The outcome of a test (see the module doc).
-struct Verdict {
-    rgb: Comparison,
-    y: Comparison,
-}
-
-impl Verdict {
-    fn passed(&self) -> bool {
-        self.rgb.worst_z <= self.rgb.threshold && self.y.passed
-    }
-}
-
-impl std::fmt::Display for Verdict {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let (r, verdict) = (&self.rgb, if self.passed() { "PASS" } else { "FAIL" });
-        write!(f, "{verdict}: sRGB worst |z| = {:.3} (threshold {:.3}); Y {}", r.worst_z, r.threshold, self.y)
-    }
-}
-
-fn versus(a: &Stats, b: &Stats) -> Verdict {
-    Verdict { rgb: compare(&a.rgb, &b.rgb), y: compare(&a.y, &b.y) }
-}
-
-fn versus_value(a: &Stats, rgb: [f64; 3], y: f64) -> Verdict {
-    Verdict { rgb: compare_to_value(&a.rgb, rgb), y: compare_to_value(&a.y, [y, 0.0, 0.0]) }
-}
-
-/// A diffuse sphere of albedo `albedo` in a constant environment of radiance
-/// 1, the camera so close that the sphere fills the whole image (light
-/// tracing cannot see the background): its angular radius is 27 degrees, the
-/// image's half diagonal 23.4. Close, so that the environment's light paths
-/// (from a disk as wide as the scene) often hit the sphere.
-fn furnace(albedo: f32) -> Scene {
-    let camera = Camera::new(Vec3A::new(0.0, 0.0, -2.2), Vec3A::ZERO, Vec3A::Y, 34.0, 32, 32);
-    let mut b = SceneBuilder::new(camera);
-    let m = b.material("white", Bsdf::Diffuse(Diffuse::new(Spectrum::Constant(albedo))));
-    b.mesh("sphere", Mesh::sphere(Vec3A::ZERO, 1.0, 4, false), m, None);
-    b.environment("sky", Spectrum::Constant(1.0));
-    b.build()
-}
-
-#[ignore = "session 1: its albedo-0.98 negative control lacks power at this budget (|z| 4.5 < 5.3); re-tune before enabling (issue 4)"]
-#[test]
-fn furnace_sphere_vanishes_under_light_tracing() {
-    let expected = srgb_of(&Spectrum::Constant(1.0));
-    let lt = integrator("light");
-    let run = |albedo: f32| render_passes(&furnace(albedo), lt.as_ref(), 512, K, seed(1), 0);
-    let v = versus_value(&Stats::new(&run(1.0), 16), expected, 1.0);
-    eprintln!("furnace light (sRGB expected {expected:?}, Y 1): {v}");
-    assert!(v.passed(), "{v}");
-    let v = versus_value(&Stats::new(&run(0.98), 16), expected, 1.0);
-    eprintln!("negative control (albedo 0.98): {v}");
-    assert!(!v.passed(), "albedo 0.98 went undetected: {v}");
+fn versus_value(a: &ColourStats, rgb: [f64; 3]) -> Verdict {
+    Verdict::versus_value(a, rgb, 1)
 }
 
 /// Light tracing whose camera importance lacks one cosine: 1 / (A cos^3)
@@ -152,8 +82,8 @@ impl Integrator for LightWithoutCos {
 #[test]
 fn light_and_path_agree_on_the_cornell_box() {
     let s = scene("cornell-box.json", 32, 32);
-    let path = Stats::new(&render_passes(&s, integrator("path").as_ref(), 128, K, seed(10), 0), 8);
-    let light = Stats::new(&render_passes(&s, integrator("light").as_ref(), 128, K, seed(100), 0), 8);
+    let path = stats(&render_passes(&s, integrator("path").as_ref(), 128, K, seed(10), 0), 8);
+    let light = stats(&render_passes(&s, integrator("light").as_ref(), 128, K, seed(100), 0), 8);
     let v = versus(&light, &path);
     eprintln!("cornell light vs path: {v}");
     assert!(v.passed(), "{v}");
@@ -162,7 +92,7 @@ fn light_and_path_agree_on_the_cornell_box() {
         eprintln!("negative control (x1.02 / x0.98): {v}");
         assert!(!v.passed(), "a 2% bias went undetected: {v}");
     }
-    let no_cos = Stats::new(&render_passes(&s, &LightWithoutCos, 128, K, seed(100), 0), 8);
+    let no_cos = stats(&render_passes(&s, &LightWithoutCos, 128, K, seed(100), 0), 8);
     let v = versus(&no_cos, &path);
     eprintln!("negative control (importance without one cos): {v}");
     assert!(!v.passed(), "the missing cosine went undetected: {v}");
@@ -185,14 +115,10 @@ fn emitting_sphere() -> Scene {
 fn uniform_radiance_gives_a_uniform_light_traced_image() {
     let s = emitting_sphere();
     let expected = srgb_of(&Spectrum::Constant(1.0));
-    let v = versus_value(
-        &Stats::new(&render_passes(&s, integrator("light").as_ref(), 64, K, seed(3), 0), 8),
-        expected,
-        1.0,
-    );
+    let v = versus_value(&stats(&render_passes(&s, integrator("light").as_ref(), 64, K, seed(3), 0), 8), expected);
     eprintln!("emitting sphere, light: {v}");
     assert!(v.passed(), "{v}");
-    let v = versus_value(&Stats::new(&render_passes(&s, &LightWithoutCos, 64, K, seed(3), 0), 8), expected, 1.0);
+    let v = versus_value(&stats(&render_passes(&s, &LightWithoutCos, 64, K, seed(3), 0), 8), expected);
     eprintln!("negative control (importance without one cos): {v}");
     assert!(!v.passed(), "the missing cosine went undetected: {v}");
 }
@@ -221,5 +147,5 @@ fn light_tracing_warns_about_what_a_pinhole_cannot_see() {
     b.environment("sky", Spectrum::Constant(1.0));
     let w = lt.unsamplable(&b.build());
     assert!(w.iter().any(|m| m.contains("environment")), "background in view not reported: {w:?}");
-    assert!(integrator("bdpt").unsamplable(&furnace(1.0)).is_empty());
+    assert!(integrator("bdpt").unsamplable(&scene("furnace.json", 32, 32)).is_empty());
 }

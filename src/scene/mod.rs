@@ -125,12 +125,16 @@ pub struct Scene {
     pub defaults: RenderDefaults,
 }
 
+/// A mesh with its material, its emission (radiance, two-sided) if any, and
+/// its name.
+type MeshEntry = (Mesh, u32, Option<(Spectrum, bool)>, String);
+
 /// Assembles a scene from meshes, materials and lights (used by the JSON
 /// loader and by tests that build scenes in code).
 pub struct SceneBuilder {
     camera: Camera,
     materials: Vec<Material>,
-    meshes: Vec<(Mesh, u32, Option<(Spectrum, bool)>, String)>,
+    meshes: Vec<MeshEntry>,
     lights: Vec<(Light, String)>,
     pub defaults: RenderDefaults,
 }

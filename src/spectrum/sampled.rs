@@ -179,7 +179,7 @@ pub fn visible_wavelength_pdf(lambda: f32) -> f32 {
         return 0.0;
     }
     let c = (0.0072 * (lambda - 538.0)).cosh();
-    0.003_939_804_2 / (c * c)
+    0.003_939_804 / (c * c)
 }
 
 #[cfg(test)]
