@@ -208,14 +208,14 @@ fn merge_refuses_mismatched_parts() {
 fn killed_and_resumed_render_is_bit_identical() {
     let d = temp_dir("kill");
     let full = d.join("full.exr");
-    render("bdpt", 3, &["--spp", "48"], &full);
+    render("bdpt", 3, &["--spp", "128"], &full);
     let out = d.join("killed.exr");
     let checkpoint = out.with_extension("ckpt");
     let mut rng = SystemTime::now().duration_since(UNIX_EPOCH).unwrap().as_nanos() as u64 | 1;
     eprintln!("kill-time seed {rng}");
     let (mut kills, mut resumes) = (0, 0);
     loop {
-        let mut args = vec!["render", SCENE, "--integrator", "bdpt", "--seed", "3", "--spp", "48"];
+        let mut args = vec!["render", SCENE, "--integrator", "bdpt", "--seed", "3", "--spp", "128"];
         args.extend(SMALL);
         let (out_s, ckpt_s) = (s(&out), s(&checkpoint));
         args.extend(["--out", &out_s, "--checkpoint-every", "0"]);
@@ -224,11 +224,11 @@ fn killed_and_resumed_render_is_bit_identical() {
             resumes += 1;
         }
         let mut child = prism_command(&args).stderr(std::process::Stdio::piped()).spawn().unwrap();
-        // xorshift64: a kill time in 20..500 ms, or none after 30 kills.
+        // xorshift64: a kill time in 20..250 ms, or none after 30 kills.
         rng ^= rng << 13;
         rng ^= rng >> 7;
         rng ^= rng << 17;
-        let kill_at = (kills < 30).then(|| Instant::now() + Duration::from_millis(20 + rng % 480));
+        let kill_at = (kills < 30).then(|| Instant::now() + Duration::from_millis(20 + rng % 230));
         let status = loop {
             if let Some(status) = child.try_wait().unwrap() {
                 break Some(status);
@@ -250,7 +250,7 @@ fn killed_and_resumed_render_is_bit_identical() {
     eprintln!("{kills} kills, {resumes} resumes");
     assert!(kills >= 1 && resumes >= 1, "{kills} kills and {resumes} resumes: nothing was tested");
     assert_eq!(std::fs::read(&out).unwrap(), std::fs::read(&full).unwrap(), "resumed render != uninterrupted one");
-    assert_eq!(sidecar(&out)["spp"], 48);
+    assert_eq!(sidecar(&out)["spp"], 128);
     assert!(!checkpoint.exists(), "the checkpoint outlived the finished render");
     let _ = std::fs::remove_dir_all(&d);
 }
