@@ -81,6 +81,12 @@ pub fn to_fixed(rgb: Vec3) -> [i128; 3] {
     rgb.to_array().map(|c| (c as f64 * (FRAC_BITS as f64).exp2()).round() as i128)
 }
 
+/// Adds fixed-point colour `v` to `sum`.
+#[inline]
+pub fn add_fixed(sum: &mut [i128; 3], v: [i128; 3]) {
+    sum.iter_mut().zip(v).for_each(|(s, v)| *s += v);
+}
+
 pub struct Film {
     pub width: u32,
     pub height: u32,
@@ -118,11 +124,7 @@ impl Film {
             self.width,
             self.height
         );
-        for (a, b) in self.sums.iter_mut().zip(&other.sums) {
-            for c in 0..3 {
-                a[c] += b[c];
-            }
-        }
+        self.sums.iter_mut().zip(&other.sums).for_each(|(a, &b)| add_fixed(a, b));
         self.spp += other.spp;
         self.dropped.merge(&other.dropped);
         Ok(())

@@ -413,15 +413,16 @@ fn render_samples(a: &RenderArgs, s: &Setup) -> Result<(Vec<[f32; 3]>, Sidecar, 
     let mut last = Instant::now();
     let stats = render_chunked(&s.scene, s.integrator.as_ref(), &s.opts, &mut film, done..range.end, chunk, |film| {
         if a.checkpoint_every.is_some_and(|every| last.elapsed() >= Duration::from_secs_f64(every)) {
-            RenderState::save(&checkpoint, &s.identity, &[range.start..range.start + film.spp as u32], film)?;
+            let held = range.start..range.start + film.spp as u32;
+            RenderState::save(&checkpoint, &s.identity, std::slice::from_ref(&held), film)?;
             last = Instant::now();
         }
         Ok(())
     })?;
-    let mut sidecar = Sidecar::new(s.identity.clone(), film.spp, &[range.clone()], film.dropped);
+    let mut sidecar = Sidecar::new(s.identity.clone(), film.spp, std::slice::from_ref(&range), film.dropped);
     if a.sample_range.is_some() {
         let path = a.out.with_extension("state");
-        RenderState::save(&path, &s.identity, &[range], &film)?;
+        RenderState::save(&path, &s.identity, std::slice::from_ref(&range), &film)?;
         sidecar.state = Some(file_name(&path));
     }
     Ok((film.image(), sidecar, stats))
@@ -450,7 +451,7 @@ fn render_passes(a: &RenderArgs, s: &Setup, k: u32) -> Result<(Vec<[f32; 3]>, Si
     film::write_exr(&path, s.identity.width, s.identity.height, &variance)?;
     let mut dropped = DroppedSamples::default();
     films.iter().for_each(|f| dropped.merge(&f.dropped));
-    let mut sidecar = Sidecar::new(s.identity.clone(), s.spp as u64, &[0..s.spp], dropped);
+    let mut sidecar = Sidecar::new(s.identity.clone(), s.spp as u64, std::slice::from_ref(&(0..s.spp)), dropped);
     sidecar.passes = Some(k);
     sidecar.variance = Some(file_name(&path));
     Ok((mean, sidecar, stats))
@@ -463,7 +464,8 @@ fn render_strategies(s: &Setup, dir: &Path) -> Result<(Vec<[f32; 3]>, Sidecar, R
     let stats = render_with_strategies(&s.scene, s.integrator.as_ref(), &s.opts, &mut film, 0..s.spp, &mut images);
     let written = images.write_exrs(dir)?;
     eprintln!("wrote {} per-strategy images to {}", written.len(), dir.display());
-    Ok((film.image(), Sidecar::new(s.identity.clone(), film.spp, &[0..s.spp], film.dropped), stats))
+    let sidecar = Sidecar::new(s.identity.clone(), film.spp, std::slice::from_ref(&(0..s.spp)), film.dropped);
+    Ok((film.image(), sidecar, stats))
 }
 
 fn merge_command(out: &Path, parts: &[PathBuf]) -> Result<()> {

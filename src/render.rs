@@ -19,7 +19,7 @@
 //! deterministic. Without it the workspace holds no record list and the
 //! integrator's check costs one branch.
 
-use crate::film::{to_fixed, write_exr, DroppedSamples, Film};
+use crate::film::{add_fixed, to_fixed, write_exr, DroppedSamples, Film};
 use crate::integrators::Integrator;
 use crate::sampling::Sampler;
 use crate::scene::Scene;
@@ -334,10 +334,7 @@ fn render_tile(
                 }
                 let l = integrator.sample(scene, pixel, &mut sampler, &mut lambda, ws);
                 if let Some(rgb) = out.dropped.admit(l, &lambda) {
-                    let v = to_fixed(rgb);
-                    for c in 0..3 {
-                        sum[c] += v[c];
-                    }
+                    add_fixed(sum, to_fixed(rgb));
                 }
                 for sp in &ws.splats {
                     if let Some(rgb) = out.dropped.admit(sp.l, &lambda) {
@@ -406,16 +403,11 @@ fn merge_tile(film: &mut Film, out: TileOutput) {
     for y in 0..out.size.y {
         for x in 0..out.size.x {
             let i = ((out.origin.y + y) * film.width + out.origin.x + x) as usize;
-            let s = out.sums[(y * out.size.x + x) as usize];
-            for c in 0..3 {
-                film.sums[i][c] += s[c];
-            }
+            add_fixed(&mut film.sums[i], out.sums[(y * out.size.x + x) as usize]);
         }
     }
     for (i, rgb) in out.splats {
-        for c in 0..3 {
-            film.sums[i as usize][c] += rgb[c];
-        }
+        add_fixed(&mut film.sums[i as usize], rgb);
     }
     film.dropped.merge(&out.dropped);
 }

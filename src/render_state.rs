@@ -252,7 +252,10 @@ mod tests {
     #[test]
     fn merge_adds_and_refuses_mismatch_or_overlap() {
         let m = RenderState::merge(vec![("b".into(), state(1, 16..32)), ("a".into(), state(1, 0..16))]).unwrap();
-        assert_eq!((m.sample_ranges, m.film.spp, m.film.sums[1]), (vec![0..32], 32, [6, 8, 10]));
+        assert_eq!(
+            (m.sample_ranges.as_slice(), m.film.spp, m.film.sums[1]),
+            (std::slice::from_ref(&(0..32)), 32, [6, 8, 10])
+        );
         let e = RenderState::merge(vec![("a".into(), state(1, 0..16)), ("b".into(), state(2, 16..32))]);
         assert!(e.err().unwrap().to_string().contains("b has seed 2 but a has 1"));
         let e = RenderState::merge(vec![("a".into(), state(1, 0..16)), ("b".into(), state(1, 8..24))]);
