@@ -383,9 +383,10 @@ fn render_command(a: RenderArgs) -> Result<()> {
         mrays_per_second: per_second(stats.rays as f64) / 1e6,
     });
     film::write_json(&a.out.with_extension("json"), &sidecar)?;
-    if a.checkpoint_every.is_some() {
-        // The outputs are complete: the checkpoint has done its job.
-        let _ = std::fs::remove_file(a.out.with_extension("ckpt"));
+    let checkpoint = a.out.with_extension("ckpt");
+    if a.checkpoint_every.is_some() || a.resume.as_ref() == Some(&checkpoint) {
+        // The outputs are complete: this render's checkpoint has done its job.
+        let _ = std::fs::remove_file(checkpoint);
     }
     eprintln!(
         "{w}x{h} {} spp{} in {secs:.2} s: {:.2} Msamples/s, {:.1} Mrays/s",
