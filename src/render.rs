@@ -24,7 +24,7 @@ use crate::integrators::Integrator;
 use crate::sampling::Sampler;
 use crate::scene::Scene;
 use crate::spectrum::{SampledSpectrum, SampledWavelengths};
-use glam::{UVec2, Vec2};
+use glam::{UVec2, Vec2, Vec3};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use rayon::ThreadPool;
@@ -156,7 +156,9 @@ struct TileOutput {
     origin: UVec2,
     size: UVec2,
     sums: Vec<[i128; 3]>,
-    splats: Vec<(u32, [i128; 3])>,
+    /// (pixel index, colour): kept as f32 until the merge, the most compact
+    /// form (a batch of tiles may hold many splats).
+    splats: Vec<(u32, Vec3)>,
     dropped: DroppedSamples,
     rays: u64,
     strategies: Option<TileStrategies>,
@@ -339,7 +341,7 @@ fn render_tile(
                 for sp in &ws.splats {
                     if let Some(rgb) = out.dropped.admit(sp.l, &lambda) {
                         let p = sp.raster.as_uvec2().min(UVec2::new(width - 1, scene.camera.height - 1));
-                        out.splats.push((p.y * width + p.x, to_fixed(rgb)));
+                        out.splats.push((p.y * width + p.x, rgb));
                     }
                 }
                 if let (Some(tile), Some(records)) = (out.strategies.as_mut(), ws.strategies.as_ref()) {
@@ -407,7 +409,7 @@ fn merge_tile(film: &mut Film, out: TileOutput) {
         }
     }
     for (i, rgb) in out.splats {
-        add_fixed(&mut film.sums[i as usize], rgb);
+        add_fixed(&mut film.sums[i as usize], to_fixed(rgb));
     }
     film.dropped.merge(&out.dropped);
 }
