@@ -352,7 +352,7 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
         width: scene.camera.width,
         height: scene.camera.height,
         max_depth,
-        mis: format!("{:?}", a.mis).to_lowercase(),
+        mis: a.mis.name().to_string(),
     };
     let opts = RenderOptions { seed, threads: a.threads, progress: !a.quiet };
     Ok(Setup { scene, integrator, identity, spp, opts })

@@ -2,7 +2,8 @@
 //! that agree with separately rendered passes; parts rendered with
 //! `--sample-range` and merged, and renders killed (SIGKILL) and resumed
 //! from checkpoints, are bit-identical to one uninterrupted render; merge
-//! and resume refuse what does not belong together, with clear errors.
+//! and resume refuse what does not belong together, and bad flags are
+//! refused, with clear errors.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -301,5 +302,30 @@ fn bad_checkpoints_are_clear_errors() {
     let args = resume(&part.with_extension("state"), "4");
     ok(&args.iter().map(String::as_str).collect::<Vec<_>>());
     assert_eq!(std::fs::read(&out).unwrap(), std::fs::read(&full).unwrap(), "resumed part != full render");
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+/// Bad long-render flags are one clear error each, before anything is
+/// rendered or written.
+#[test]
+fn bad_flags_are_clear_errors() {
+    let d = temp_dir("flags");
+    let out = s(&d.join("out.exr"));
+    let cases: [(&[&str], &str); 6] = [
+        (&["--passes", "1"], "--passes must be at least 2"),
+        (&["--sample-range", "8..8"], "expected A..B"),
+        (&["--sample-range", "0-8"], "expected A..B"),
+        (&["--sample-range", "0..8", "--spp", "8"], "cannot be used with"),
+        (&["--passes", "4", "--sample-range", "0..8"], "cannot be used with"),
+        (&["--checkpoint-every", "NaN"], "--checkpoint-every must be"),
+    ];
+    for (flags, what) in cases {
+        let mut args = vec!["render", SCENE, "--out", &out];
+        args.extend(SMALL);
+        args.extend(flags);
+        let e = fails(&args);
+        assert!(e.contains(what), "{flags:?}: {e}");
+        assert_eq!(std::fs::read_dir(&d).unwrap().count(), 0, "{flags:?}: something was written");
+    }
     let _ = std::fs::remove_dir_all(&d);
 }
