@@ -68,7 +68,12 @@ pub enum MisHeuristic {
 }
 
 impl MisHeuristic {
+    /// The command-line names, in declaration order.
     pub const NAMES: &'static [&'static str] = &["power", "balance", "uniform"];
+
+    pub fn name(self) -> &'static str {
+        Self::NAMES[self as usize]
+    }
 
     /// What a strategy of relative density r = p_k / p_s adds to the
     /// denominator of strategy s's weight.

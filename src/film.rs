@@ -1,12 +1,21 @@
-//! The film: box-filtered pixel accumulation in f64, an additive splat buffer
-//! (light tracing and BDPT's t = 1 strategy), the check that keeps NaN,
-//! infinite and negative samples out of the image (counted, per reason), and
-//! the outputs: EXR (f32 linear sRGB), PNG preview, JSON sidecar. Files are
-//! written to a temporary name and renamed, so a failed render never leaves a
-//! half-written file and never clobbers an existing one.
+//! The film: box-filtered pixel accumulation (camera samples and splats from
+//! light tracing and BDPT's t = 1 strategy) in exact fixed point, the check
+//! that keeps NaN, infinite and negative samples out of the image (counted,
+//! per reason), and the outputs: EXR (f32 linear sRGB), PNG preview, JSON
+//! sidecar. Files are written to a temporary name, flushed to disk and
+//! renamed, so a failed or killed render never leaves a half-written file and
+//! never clobbers an existing one.
+//!
+//! Why fixed point: a floating-point sum depends on the order of its terms,
+//! so samples 0..64 summed at once differ in the last bits from 0..16 plus
+//! 16..64, or from four parts rendered on four machines and merged. Each
+//! sample is instead rounded once to a multiple of 2^-FRAC_BITS and the film
+//! adds i128 integers, which is exact and associative: chunks, checkpoints,
+//! resumed runs and merged parts give the same bits as one uninterrupted
+//! render, whatever the split (docs/cluster.md).
 
 use crate::spectrum::{to_linear_srgb, SampledSpectrum, SampledWavelengths};
-use anyhow::{Context, Result};
+use anyhow::{ensure, Context, Result};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -32,7 +41,9 @@ impl DroppedSamples {
 
     /// Converts a spectral sample to linear sRGB, or counts why it is dropped.
     /// The check is on the spectral values: sRGB itself may legitimately be
-    /// negative for saturated spectra.
+    /// negative for saturated spectra. A colour beyond the film's exact range
+    /// (|c| > MAX_SAMPLE, some 10^14: no estimator comes near it on a sane
+    /// scene) counts as infinite, so the fixed-point sums cannot overflow.
     #[inline]
     pub fn admit(&mut self, l: SampledSpectrum, lambda: &SampledWavelengths) -> Option<Vec3> {
         if l.0.is_nan_mask().any() {
@@ -47,17 +58,41 @@ impl DroppedSamples {
             self.negative += 1;
             return None;
         }
-        Some(to_linear_srgb(l, lambda))
+        let rgb = to_linear_srgb(l, lambda);
+        if rgb.abs().max_element() > MAX_SAMPLE {
+            self.infinite += 1;
+            return None;
+        }
+        Some(rgb)
     }
+}
+
+/// Fractional bits of the film's fixed-point sums: a resolution of 2^-60
+/// keeps every f32 sample above 2^-36 exact and rounds smaller ones by less
+/// than 10^-18, far below what an f32 pixel can show.
+const FRAC_BITS: i32 = 60;
+/// The largest sample colour the film accepts: 2^48, so that 2^19 such
+/// samples in one pixel still fit the 127 bits of an i128 sum.
+pub const MAX_SAMPLE: f32 = (1u64 << 48) as f32;
+
+/// A sample's colour in the film's fixed point (`admit` bounds it).
+#[inline]
+pub fn to_fixed(rgb: Vec3) -> [i128; 3] {
+    rgb.to_array().map(|c| (c as f64 * (FRAC_BITS as f64).exp2()).round() as i128)
+}
+
+/// Adds fixed-point colour `v` to `sum`.
+#[inline]
+pub fn add_fixed(sum: &mut [i128; 3], v: [i128; 3]) {
+    sum.iter_mut().zip(v).for_each(|(s, v)| *s += v);
 }
 
 pub struct Film {
     pub width: u32,
     pub height: u32,
-    /// Sum of camera-sample estimates per pixel (linear sRGB).
-    pub pixels: Vec<[f64; 3]>,
-    /// Sum of splatted contributions per pixel.
-    pub splats: Vec<[f64; 3]>,
+    /// Exact sum per pixel of every estimate that landed in it, camera
+    /// samples and splats alike (linear sRGB in 2^-FRAC_BITS units).
+    pub sums: Vec<[i128; 3]>,
     /// Samples per pixel accumulated so far.
     pub spp: u64,
     pub dropped: DroppedSamples,
@@ -67,34 +102,49 @@ impl Film {
     pub fn new(width: u32, height: u32) -> Self {
         // In usize: width * height in u32 wraps for images of 2^32 pixels or more.
         let n = width as usize * height as usize;
-        Self {
-            width,
-            height,
-            pixels: vec![[0.0; 3]; n],
-            splats: vec![[0.0; 3]; n],
-            spp: 0,
-            dropped: DroppedSamples::default(),
-        }
+        Self { width, height, sums: vec![[0; 3]; n], spp: 0, dropped: DroppedSamples::default() }
     }
 
-    /// The pixel estimates: camera samples averaged over spp, plus splats
-    /// divided by spp (spp light paths per pixel were traced; the camera's
-    /// importance is normalised over the whole image, see camera.rs).
+    /// The pixel estimates: sums divided by spp. For camera samples that is
+    /// their mean; for splats too, since spp light paths per pixel were
+    /// traced (the camera's importance is normalised over the whole image,
+    /// see camera.rs).
     pub fn image(&self) -> Vec<[f32; 3]> {
-        let inv = if self.spp == 0 { 0.0 } else { 1.0 / self.spp as f64 };
-        self.pixels.iter().zip(&self.splats).map(|(p, s)| [0, 1, 2].map(|c| ((p[c] + s[c]) * inv) as f32)).collect()
+        let scale = if self.spp == 0 { 0.0 } else { (-FRAC_BITS as f64).exp2() / self.spp as f64 };
+        self.sums.iter().map(|s| s.map(|c| (c as f64 * scale) as f32)).collect()
+    }
+
+    /// Adds another film of the same size (other samples of the same image).
+    pub fn add(&mut self, other: &Film) -> Result<()> {
+        ensure!(
+            (self.width, self.height) == (other.width, other.height),
+            "cannot add a {}x{} film to a {}x{} one",
+            other.width,
+            other.height,
+            self.width,
+            self.height
+        );
+        self.sums.iter_mut().zip(&other.sums).for_each(|(a, &b)| add_fixed(a, b));
+        self.spp += other.spp;
+        self.dropped.merge(&other.dropped);
+        Ok(())
     }
 }
 
-/// Writes `bytes` through `write` to a temporary file beside `path`, then
-/// renames it into place.
-fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+/// Writes through `write` to a temporary file beside `path`, flushes it to
+/// disk, then renames it into place and flushes the directory: whenever the
+/// process dies, `path` holds either its old or its complete new contents
+/// (what checkpoints rely on).
+pub fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
     let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
     let name = path.file_name().context("output path has no file name")?.to_string_lossy();
     let ext = path.extension().map(|e| e.to_string_lossy().to_string()).unwrap_or_default();
     let tmp = dir.join(format!(".{name}.{}.tmp.{ext}", std::process::id()));
     let result = write(&tmp).and_then(|_| {
-        std::fs::rename(&tmp, path).with_context(|| format!("cannot move output into {}", path.display()))
+        let sync = |p: &Path| std::fs::File::open(p).and_then(|f| f.sync_all());
+        sync(&tmp).with_context(|| format!("cannot flush {}", tmp.display()))?;
+        std::fs::rename(&tmp, path).with_context(|| format!("cannot move output into {}", path.display()))?;
+        sync(dir).with_context(|| format!("cannot flush directory {}", dir.display()))
     });
     if result.is_err() {
         let _ = std::fs::remove_file(&tmp);

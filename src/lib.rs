@@ -12,6 +12,7 @@ pub mod light;
 pub mod path;
 pub mod reference;
 pub mod render;
+pub mod render_state;
 pub mod sampling;
 pub mod scene;
 pub mod shapes;

@@ -1,14 +1,18 @@
 //! The `prism` command line.
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, ensure, Context, Result};
 use clap::{Parser, Subcommand};
 use prism::film::{self, DroppedSamples, Film};
-use prism::integrators::{self, IntegratorOptions, MisHeuristic, INTEGRATORS};
-use prism::render::{render, render_with_strategies, RenderOptions, StrategyImages};
-use prism::scene::load_scene;
+use prism::integrators::{self, Integrator, IntegratorOptions, MisHeuristic, INTEGRATORS};
+use prism::render::{render_chunked, render_with_strategies, RenderOptions, RenderStats, StrategyImages};
+use prism::render_state::{fnv1a, Identity, RenderState};
+use prism::scene::{load_scene, Scene};
+use prism::stats::{pixel_mean_variance, render_pass_films};
 use serde::Serialize;
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::time::{Duration, Instant};
 
 #[derive(Parser)]
 #[command(name = "prism", version, about = "A spectral bidirectional path tracer for light-transport research")]
@@ -26,6 +30,16 @@ enum Command {
     /// Render a stored reference: K independent passes, their mean (EXR) and
     /// per-block means and standard errors (JSON sidecar) for z-tests.
     Reference(ReferenceArgs),
+    /// Add parts of one render (`render --sample-range`) into one image:
+    /// OUT.exr, its sidecar OUT.json and state OUT.state, bit-identical to a
+    /// single render of all their samples (docs/cluster.md).
+    Merge {
+        /// Output EXR.
+        out: PathBuf,
+        /// The parts' EXRs (their sums are read from the .state beside each).
+        #[arg(required = true)]
+        parts: Vec<PathBuf>,
+    },
     /// Compare an image with a reference: relMSE, MSE, mean absolute error.
     Compare { image: PathBuf, reference: PathBuf },
     /// Progressive renders against a reference: relMSE vs time and spp per
@@ -109,26 +123,85 @@ struct RenderArgs {
     /// into this directory (created if missing; bdpt only).
     #[arg(long, value_name = "DIR")]
     strategies: Option<PathBuf>,
+    /// Render K independent passes of --spp samples (seeds seed, seed+1, ...):
+    /// --out gets their mean, OUT.var.exr the per-pixel sample variance of
+    /// one pass (divide by K for the variance of the mean).
+    #[arg(long, value_name = "K", conflicts_with_all = ["sample_range", "checkpoint_every", "resume", "strategies"])]
+    passes: Option<u32>,
+    /// Render only the sample indices A..B (A included, B not) of every
+    /// pixel, a part for `prism merge`; also writes the part's sums to OUT.state.
+    #[arg(long, value_name = "A..B", value_parser = parse_range, conflicts_with_all = ["spp", "strategies"])]
+    sample_range: Option<Range<u32>>,
+    /// Write the accumulation state to OUT.ckpt (durably) whenever SECONDS
+    /// have passed since the last one, between whole samples per pixel;
+    /// removed when the render completes.
+    #[arg(long, value_name = "SECONDS", conflicts_with = "strategies")]
+    checkpoint_every: Option<f64>,
+    /// Continue from a checkpoint (or a part's .state) of the same render:
+    /// the rest of the command must be the one that made it.
+    #[arg(long, value_name = "CHECKPOINT", conflicts_with = "strategies")]
+    resume: Option<PathBuf>,
+}
+
+fn parse_range(s: &str) -> Result<Range<u32>, String> {
+    let bad = || format!("expected A..B with integers 0 <= A < B, got \"{s}\"");
+    let (a, b) = s.split_once("..").ok_or_else(bad)?;
+    let (a, b): (u32, u32) = (a.parse().map_err(|_| bad())?, b.parse().map_err(|_| bad())?);
+    if a >= b {
+        return Err(bad());
+    }
+    Ok(a..b)
 }
 
 /// The JSON sidecar written next to every EXR.
 #[derive(Serialize)]
 struct Sidecar {
-    scene: String,
-    integrator: String,
+    #[serde(flatten)]
+    identity: Identity,
+    /// Samples per pixel (per pass with --passes).
     spp: u64,
-    seed: u64,
-    width: u32,
-    height: u32,
-    max_depth: u32,
+    /// The sample indices rendered, as [start, end) ranges.
+    sample_ranges: Vec<[u32; 2]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    passes: Option<u32>,
+    /// The per-pixel variance EXR (--passes).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    variance: Option<String>,
+    /// The film's exact sums, for `prism merge` (--sample-range, merge).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    state: Option<String>,
+    /// This process's work (a resumed render counts only its own).
+    #[serde(flatten, skip_serializing_if = "Option::is_none")]
+    performance: Option<Performance>,
+    dropped_samples: DroppedSamples,
+    prism_version: &'static str,
+    commit: &'static str,
+}
+
+#[derive(Serialize)]
+struct Performance {
     threads: usize,
     wall_seconds: f64,
     samples_per_second: f64,
     rays: u64,
     mrays_per_second: f64,
-    dropped_samples: DroppedSamples,
-    prism_version: &'static str,
-    commit: &'static str,
+}
+
+impl Sidecar {
+    fn new(identity: Identity, spp: u64, ranges: &[Range<u32>], dropped: DroppedSamples) -> Self {
+        Sidecar {
+            identity,
+            spp,
+            sample_ranges: ranges.iter().map(|r| [r.start, r.end]).collect(),
+            passes: None,
+            variance: None,
+            state: None,
+            performance: None,
+            dropped_samples: dropped,
+            prism_version: env!("CARGO_PKG_VERSION"),
+            commit: env!("PRISM_COMMIT"),
+        }
+    }
 }
 
 fn main() -> ExitCode {
@@ -143,6 +216,7 @@ fn main() -> ExitCode {
         }
         Command::RgbTable { res, out } => rgb_table(res, &out),
         Command::Reference(args) => reference_command(args),
+        Command::Merge { out, parts } => merge_command(&out, &parts),
         Command::Compare { image, reference } => compare_command(&image, &reference),
         Command::Converge(args) => prism::converge::command(args),
     };
@@ -218,13 +292,30 @@ fn check_writable(path: &Path) -> Result<()> {
     Ok(())
 }
 
-fn render_command(a: RenderArgs) -> Result<()> {
+/// What every kind of render shares: the scene, its estimator, the options
+/// and what identifies the render (for checkpoints, parts and sidecars).
+struct Setup {
+    scene: Scene,
+    integrator: Box<dyn Integrator>,
+    identity: Identity,
+    spp: u32,
+    opts: RenderOptions,
+}
+
+/// Loads the scene and checks every argument before anything is rendered.
+fn set_up(a: &RenderArgs) -> Result<Setup> {
     let mut builder = load_scene(&a.scene)?;
     let defaults = builder.defaults.clone();
-    let name = a.integrator.or(defaults.integrator).unwrap_or_else(|| "path".to_string());
+    let name = a.integrator.clone().or(defaults.integrator).unwrap_or_else(|| "path".to_string());
     let spp = a.spp.or(defaults.spp).unwrap_or(16);
     if spp == 0 {
         bail!("--spp must be at least 1");
+    }
+    if a.passes.is_some_and(|k| k < 2) {
+        bail!("--passes must be at least 2 (a variance needs two passes)");
+    }
+    if a.checkpoint_every.is_some_and(|s| !(s >= 0.0 && s.is_finite())) {
+        bail!("--checkpoint-every must be a number of seconds >= 0");
     }
     let seed = a.seed.or(defaults.seed).unwrap_or(0);
     let max_depth = a.max_depth.or(defaults.max_depth).unwrap_or(IntegratorOptions::default().max_depth);
@@ -251,57 +342,166 @@ fn render_command(a: RenderArgs) -> Result<()> {
     if let Some(png) = &a.png {
         check_writable(png)?;
     }
+    let scene_bytes = std::fs::read(&a.scene).with_context(|| format!("cannot read {}", a.scene.display()))?;
     let scene = builder.build();
-    for w in integrator.unsamplable(&scene) {
+    let identity = Identity {
+        scene: a.scene.display().to_string(),
+        scene_hash: format!("{:016x}", fnv1a(&scene_bytes)),
+        integrator: name,
+        seed,
+        width: scene.camera.width,
+        height: scene.camera.height,
+        max_depth,
+        mis: a.mis.name().to_string(),
+    };
+    let opts = RenderOptions { seed, threads: a.threads, progress: !a.quiet };
+    Ok(Setup { scene, integrator, identity, spp, opts })
+}
+
+fn render_command(a: RenderArgs) -> Result<()> {
+    let s = set_up(&a)?;
+    for w in s.integrator.unsamplable(&s.scene) {
         eprintln!("warning: {w}");
     }
-    let (w, h) = (scene.camera.width, scene.camera.height);
-    let mut film = Film::new(w, h);
-    let opts = RenderOptions { seed, threads: a.threads, progress: !a.quiet };
-    let mut strategies = a.strategies.as_ref().map(|_| StrategyImages::new(w, h));
-    let stats = match strategies.as_mut() {
-        Some(images) => render_with_strategies(&scene, integrator.as_ref(), &opts, &mut film, 0..spp, images),
-        None => render(&scene, integrator.as_ref(), &opts, &mut film, 0..spp),
+    let (image, mut sidecar, stats) = match (a.passes, &a.strategies) {
+        (Some(k), _) => render_passes(&a, &s, k)?,
+        (None, Some(dir)) => render_strategies(&s, dir)?,
+        (None, None) => render_samples(&a, &s)?,
     };
-    let image = film.image();
+    let (w, h) = (s.identity.width, s.identity.height);
     film::write_exr(&a.out, w, h, &image)?;
-    if let (Some(dir), Some(images)) = (&a.strategies, &strategies) {
-        let written = images.write_exrs(dir)?;
-        eprintln!("wrote {} per-strategy images to {}", written.len(), dir.display());
-    }
     if let Some(png) = &a.png {
         film::write_png(png, w, h, &image, a.exposure)?;
     }
     let secs = stats.wall.as_secs_f64();
-    let sidecar = Sidecar {
-        scene: a.scene.display().to_string(),
-        integrator: name,
-        spp: film.spp,
-        seed,
-        width: w,
-        height: h,
-        max_depth,
+    let per_second = |x: f64| if secs > 0.0 { x / secs } else { 0.0 };
+    sidecar.performance = Some(Performance {
         threads: rayon::current_num_threads().max(a.threads),
         wall_seconds: secs,
-        samples_per_second: stats.samples as f64 / secs,
+        samples_per_second: per_second(stats.samples as f64),
         rays: stats.rays,
-        mrays_per_second: stats.rays as f64 / secs / 1e6,
-        dropped_samples: film.dropped,
-        prism_version: env!("CARGO_PKG_VERSION"),
-        commit: env!("PRISM_COMMIT"),
-    };
+        mrays_per_second: per_second(stats.rays as f64) / 1e6,
+    });
     film::write_json(&a.out.with_extension("json"), &sidecar)?;
+    let checkpoint = a.out.with_extension("ckpt");
+    if a.checkpoint_every.is_some() || a.resume.as_ref() == Some(&checkpoint) {
+        // The outputs are complete: this render's checkpoint has done its job.
+        let _ = std::fs::remove_file(checkpoint);
+    }
     eprintln!(
-        "{}x{} {} spp in {:.2} s: {:.2} Msamples/s, {:.1} Mrays/s",
-        w,
-        h,
-        film.spp,
-        secs,
-        sidecar.samples_per_second / 1e6,
-        sidecar.mrays_per_second
+        "{w}x{h} {} spp{} in {secs:.2} s: {:.2} Msamples/s, {:.1} Mrays/s",
+        sidecar.spp,
+        a.passes.map(|k| format!(" x {k} passes")).unwrap_or_default(),
+        per_second(stats.samples as f64) / 1e6,
+        per_second(stats.rays as f64) / 1e6
     );
-    if film.dropped.total() > 0 {
-        let d = film.dropped;
+    warn_dropped(&sidecar.dropped_samples);
+    Ok(())
+}
+
+/// Renders sample indices 0..spp, or --sample-range, possibly resumed from a
+/// checkpoint and checkpointed on the way.
+fn render_samples(a: &RenderArgs, s: &Setup) -> Result<(Vec<[f32; 3]>, Sidecar, RenderStats)> {
+    let range = a.sample_range.clone().unwrap_or(0..s.spp);
+    let mut film = match &a.resume {
+        Some(path) => resume(path, &s.identity, &range)?,
+        None => Film::new(s.identity.width, s.identity.height),
+    };
+    let done = range.start + film.spp as u32;
+    // Checkpoints are taken between chunks: one sample per pixel each.
+    let chunk = if a.checkpoint_every.is_some() { 1 } else { range.len().max(1) as u32 };
+    let checkpoint = a.out.with_extension("ckpt");
+    let mut last = Instant::now();
+    let stats = render_chunked(&s.scene, s.integrator.as_ref(), &s.opts, &mut film, done..range.end, chunk, |film| {
+        if a.checkpoint_every.is_some_and(|every| last.elapsed() >= Duration::from_secs_f64(every)) {
+            let held = range.start..range.start + film.spp as u32;
+            RenderState::save(&checkpoint, &s.identity, std::slice::from_ref(&held), film)?;
+            last = Instant::now();
+        }
+        Ok(())
+    })?;
+    let mut sidecar = Sidecar::new(s.identity.clone(), film.spp, std::slice::from_ref(&range), film.dropped);
+    if a.sample_range.is_some() {
+        let path = a.out.with_extension("state");
+        RenderState::save(&path, &s.identity, std::slice::from_ref(&range), &film)?;
+        sidecar.state = Some(file_name(&path));
+    }
+    Ok((film.image(), sidecar, stats))
+}
+
+/// Loads a checkpoint's film after checking it belongs to this render and
+/// holds the first samples of `range`.
+fn resume(path: &Path, identity: &Identity, range: &Range<u32>) -> Result<Film> {
+    let state = RenderState::load(path)?;
+    let name = path.display().to_string();
+    identity.ensure_same("this render", &state.identity, &name)?;
+    let held = state.contiguous_range();
+    ensure!(
+        held.as_ref().is_some_and(|h| h.start == range.start && h.end <= range.end),
+        "{name} holds samples {:?}, which are not the first samples of this render's {range:?}",
+        state.sample_ranges
+    );
+    Ok(state.film)
+}
+
+/// --passes: K independent renders, their mean and per-pixel variance.
+fn render_passes(a: &RenderArgs, s: &Setup, k: u32) -> Result<(Vec<[f32; 3]>, Sidecar, RenderStats)> {
+    let (films, stats) = render_pass_films(&s.scene, s.integrator.as_ref(), &s.opts, s.spp, k);
+    let (mean, variance) = pixel_mean_variance(&films.iter().map(Film::image).collect::<Vec<_>>());
+    let path = a.out.with_extension("var.exr");
+    film::write_exr(&path, s.identity.width, s.identity.height, &variance)?;
+    let mut dropped = DroppedSamples::default();
+    films.iter().for_each(|f| dropped.merge(&f.dropped));
+    let mut sidecar = Sidecar::new(s.identity.clone(), s.spp as u64, std::slice::from_ref(&(0..s.spp)), dropped);
+    sidecar.passes = Some(k);
+    sidecar.variance = Some(file_name(&path));
+    Ok((mean, sidecar, stats))
+}
+
+/// --strategies: the image plus one image per BDPT strategy.
+fn render_strategies(s: &Setup, dir: &Path) -> Result<(Vec<[f32; 3]>, Sidecar, RenderStats)> {
+    let mut film = Film::new(s.identity.width, s.identity.height);
+    let mut images = StrategyImages::new(film.width, film.height);
+    let stats = render_with_strategies(&s.scene, s.integrator.as_ref(), &s.opts, &mut film, 0..s.spp, &mut images);
+    let written = images.write_exrs(dir)?;
+    eprintln!("wrote {} per-strategy images to {}", written.len(), dir.display());
+    let sidecar = Sidecar::new(s.identity.clone(), film.spp, std::slice::from_ref(&(0..s.spp)), film.dropped);
+    Ok((film.image(), sidecar, stats))
+}
+
+fn merge_command(out: &Path, parts: &[PathBuf]) -> Result<()> {
+    if out.extension().and_then(|e| e.to_str()) != Some("exr") {
+        bail!("the merge output must name an .exr file, got {}", out.display());
+    }
+    check_writable(out)?;
+    let states = parts
+        .iter()
+        .map(|p| {
+            let path = p.with_extension("state");
+            Ok((path.display().to_string(), RenderState::load(&path)?))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let merged = RenderState::merge(states)?;
+    let (id, film) = (&merged.identity, &merged.film);
+    let state = out.with_extension("state");
+    RenderState::save(&state, id, &merged.sample_ranges, film)?;
+    film::write_exr(out, id.width, id.height, &film.image())?;
+    let mut sidecar = Sidecar::new(id.clone(), film.spp, &merged.sample_ranges, film.dropped);
+    sidecar.state = Some(file_name(&state));
+    film::write_json(&out.with_extension("json"), &sidecar)?;
+    eprintln!("merged {} parts: {} spp (samples {:?})", parts.len(), film.spp, merged.sample_ranges);
+    warn_dropped(&film.dropped);
+    Ok(())
+}
+
+/// A sidecar names the files beside it by file name, so that the set can be
+/// moved (from cluster scratch space, say) without breaking it.
+fn file_name(path: &Path) -> String {
+    path.file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_default()
+}
+
+fn warn_dropped(d: &DroppedSamples) {
+    if d.total() > 0 {
         eprintln!(
             "warning: dropped {} samples ({} NaN, {} infinite, {} negative); see the sidecar",
             d.total(),
@@ -310,5 +510,4 @@ fn render_command(a: RenderArgs) -> Result<()> {
             d.negative
         );
     }
-    Ok(())
 }

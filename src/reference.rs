@@ -7,7 +7,7 @@
 use crate::film::{read_exr, write_exr, write_json};
 use crate::integrators::Integrator;
 use crate::scene::Scene;
-use crate::stats::{render_passes, BlockStats};
+use crate::stats::{pixel_mean_variance, render_passes, BlockStats};
 use anyhow::{ensure, Context, Result};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -65,9 +65,7 @@ pub fn make_reference(
     let images = render_passes(scene, integrator, spp, passes, seed, threads);
     let wall_seconds = start.elapsed().as_secs_f64();
     let stats = BlockStats::from_passes(&images, w, h, block);
-    let mean: Vec<[f32; 3]> = (0..(w * h) as usize)
-        .map(|i| [0, 1, 2].map(|c| (images.iter().map(|im| im[i][c] as f64).sum::<f64>() / passes as f64) as f32))
-        .collect();
+    let (mean, _) = pixel_mean_variance(&images);
     let meta = ReferenceMeta {
         scene: scene_name.to_string(),
         integrator: integrator_name.to_string(),

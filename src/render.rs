@@ -2,10 +2,14 @@
 //! seeding and a deterministic merge.
 //!
 //! Determinism: every sample (pixel, index) draws from its own stream seeded
-//! by (seed, pixel, index); a tile sums its pixels' samples in index order;
-//! tiles are processed in fixed-size batches whose results are merged in tile
-//! order (splats included). No result depends on which thread ran what, so
-//! the same scene, seed and spp give bit-identical images at any thread count.
+//! by (seed, pixel, index), light tracing's light paths included (one per
+//! (pixel, index), whatever pixel it splats into), so sample index ranges
+//! split camera and light paths alike. The film adds exact fixed-point sums
+//! (film.rs), so no result depends on which thread ran what, nor on how the
+//! sample indices were split into chunks, checkpoints or parts: the same
+//! scene, seed and samples give bit-identical images at any thread count.
+//! Tiles are still processed in fixed-size batches merged in tile order, for
+//! the f64 per-strategy images below.
 //!
 //! Per-strategy images (`render_with_strategies`, BDPT's `--strategies`):
 //! the integrator appends a small `StrategyRecord` per strategy to the
@@ -15,14 +19,15 @@
 //! deterministic. Without it the workspace holds no record list and the
 //! integrator's check costs one branch.
 
-use crate::film::{write_exr, DroppedSamples, Film};
+use crate::film::{add_fixed, to_fixed, write_exr, DroppedSamples, Film};
 use crate::integrators::Integrator;
 use crate::sampling::Sampler;
 use crate::scene::Scene;
 use crate::spectrum::{SampledSpectrum, SampledWavelengths};
-use glam::{UVec2, Vec2};
+use glam::{UVec2, Vec2, Vec3};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
+use rayon::ThreadPool;
 use std::collections::BTreeMap;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
@@ -139,11 +144,21 @@ pub struct RenderStats {
     pub rays: u64,
 }
 
+impl RenderStats {
+    pub fn add(&mut self, o: &RenderStats) {
+        self.wall += o.wall;
+        self.samples += o.samples;
+        self.rays += o.rays;
+    }
+}
+
 struct TileOutput {
     origin: UVec2,
     size: UVec2,
-    sums: Vec<[f64; 3]>,
-    splats: Vec<(u32, [f64; 3])>,
+    sums: Vec<[i128; 3]>,
+    /// (pixel index, colour): kept as f32 until the merge, the most compact
+    /// form (a batch of tiles may hold many splats).
+    splats: Vec<(u32, Vec3)>,
     dropped: DroppedSamples,
     rays: u64,
     strategies: Option<TileStrategies>,
@@ -157,7 +172,37 @@ pub fn render(
     film: &mut Film,
     samples: Range<u32>,
 ) -> RenderStats {
-    render_impl(scene, integrator, opts, film, samples, None)
+    let tiles = tile_grid(film.width, film.height);
+    let bar = progress_bar(opts.progress, tiles.len() as u64);
+    let stats = render_impl(scene, integrator, &thread_pool(opts), &bar, &tiles, opts.seed, film, samples, None);
+    bar.finish_and_clear();
+    stats
+}
+
+/// `render` in consecutive chunks of `chunk` sample indices, calling
+/// `after_chunk` with the film after each one (where checkpoints are taken).
+/// The film's sums are exact, so the image does not depend on `chunk`.
+pub fn render_chunked(
+    scene: &Scene,
+    integrator: &dyn Integrator,
+    opts: &RenderOptions,
+    film: &mut Film,
+    samples: Range<u32>,
+    chunk: u32,
+    mut after_chunk: impl FnMut(&Film) -> anyhow::Result<()>,
+) -> anyhow::Result<RenderStats> {
+    assert!(chunk > 0, "chunks of zero samples");
+    let (pool, tiles) = (thread_pool(opts), tile_grid(film.width, film.height));
+    let chunks: Vec<Range<u32>> =
+        samples.clone().step_by(chunk as usize).map(|s| s..s.saturating_add(chunk).min(samples.end)).collect();
+    let bar = progress_bar(opts.progress, (tiles.len() * chunks.len()) as u64);
+    let mut total = RenderStats::default();
+    for c in chunks {
+        total.add(&render_impl(scene, integrator, &pool, &bar, &tiles, opts.seed, film, c, None));
+        after_chunk(film)?;
+    }
+    bar.finish_and_clear();
+    Ok(total)
 }
 
 /// `render`, also adding each connection strategy's contribution to
@@ -176,29 +221,44 @@ pub fn render_with_strategies(
         (film.width, film.height),
         "strategy images and film differ in size"
     );
-    render_impl(scene, integrator, opts, film, samples, Some(strategies))
+    let tiles = tile_grid(film.width, film.height);
+    let bar = progress_bar(opts.progress, tiles.len() as u64);
+    let pool = thread_pool(opts);
+    let stats = render_impl(scene, integrator, &pool, &bar, &tiles, opts.seed, film, samples, Some(strategies));
+    bar.finish_and_clear();
+    stats
 }
 
-fn render_impl(
-    scene: &Scene,
-    integrator: &dyn Integrator,
-    opts: &RenderOptions,
-    film: &mut Film,
-    samples: Range<u32>,
-    mut strategies: Option<&mut StrategyImages>,
-) -> RenderStats {
-    let record = strategies.is_some();
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(opts.threads).build().expect("thread pool");
-    let start = Instant::now();
-    let (w, h) = (film.width, film.height);
-    let tiles: Vec<(UVec2, UVec2)> = (0..h.div_ceil(TILE))
+fn thread_pool(opts: &RenderOptions) -> ThreadPool {
+    rayon::ThreadPoolBuilder::new().num_threads(opts.threads).build().expect("thread pool")
+}
+
+/// The image's tiles (origin, size) in row-major order.
+fn tile_grid(w: u32, h: u32) -> Vec<(UVec2, UVec2)> {
+    (0..h.div_ceil(TILE))
         .flat_map(|ty| (0..w.div_ceil(TILE)).map(move |tx| (tx, ty)))
         .map(|(tx, ty)| {
             let o = UVec2::new(tx * TILE, ty * TILE);
             (o, UVec2::new(TILE.min(w - o.x), TILE.min(h - o.y)))
         })
-        .collect();
-    let bar = progress_bar(opts.progress, tiles.len() as u64);
+        .collect()
+}
+
+#[allow(clippy::too_many_arguments)]
+fn render_impl(
+    scene: &Scene,
+    integrator: &dyn Integrator,
+    pool: &ThreadPool,
+    bar: &ProgressBar,
+    tiles: &[(UVec2, UVec2)],
+    seed: u64,
+    film: &mut Film,
+    samples: Range<u32>,
+    mut strategies: Option<&mut StrategyImages>,
+) -> RenderStats {
+    let record = strategies.is_some();
+    let start = Instant::now();
+    let (w, h) = (film.width, film.height);
     let mut rays = 0;
     pool.install(|| {
         for batch in tiles.chunks(BATCH) {
@@ -208,7 +268,7 @@ fn render_impl(
                     if record && ws.strategies.is_none() {
                         ws.strategies = Some(Vec::new());
                     }
-                    let out = render_tile(scene, integrator, opts.seed, ws, film.width, origin, size, samples.clone());
+                    let out = render_tile(scene, integrator, seed, ws, film.width, origin, size, samples.clone());
                     bar.inc(1);
                     out
                 })
@@ -222,7 +282,6 @@ fn render_impl(
             }
         }
     });
-    bar.finish_and_clear();
     film.spp += samples.len() as u64;
     if let Some(images) = strategies {
         images.spp += samples.len() as u64;
@@ -256,7 +315,7 @@ fn render_tile(
     let mut out = TileOutput {
         origin,
         size,
-        sums: vec![[0.0; 3]; (size.x * size.y) as usize],
+        sums: vec![[0; 3]; (size.x * size.y) as usize],
         splats: Vec::new(),
         dropped: DroppedSamples::default(),
         rays: 0,
@@ -277,14 +336,12 @@ fn render_tile(
                 }
                 let l = integrator.sample(scene, pixel, &mut sampler, &mut lambda, ws);
                 if let Some(rgb) = out.dropped.admit(l, &lambda) {
-                    for c in 0..3 {
-                        sum[c] += rgb[c] as f64;
-                    }
+                    add_fixed(sum, to_fixed(rgb));
                 }
                 for sp in &ws.splats {
                     if let Some(rgb) = out.dropped.admit(sp.l, &lambda) {
                         let p = sp.raster.as_uvec2().min(UVec2::new(width - 1, scene.camera.height - 1));
-                        out.splats.push((p.y * width + p.x, rgb.to_array().map(f64::from)));
+                        out.splats.push((p.y * width + p.x, rgb));
                     }
                 }
                 if let (Some(tile), Some(records)) = (out.strategies.as_mut(), ws.strategies.as_ref()) {
@@ -348,16 +405,11 @@ fn merge_tile(film: &mut Film, out: TileOutput) {
     for y in 0..out.size.y {
         for x in 0..out.size.x {
             let i = ((out.origin.y + y) * film.width + out.origin.x + x) as usize;
-            let s = out.sums[(y * out.size.x + x) as usize];
-            for c in 0..3 {
-                film.pixels[i][c] += s[c];
-            }
+            add_fixed(&mut film.sums[i], out.sums[(y * out.size.x + x) as usize]);
         }
     }
     for (i, rgb) in out.splats {
-        for c in 0..3 {
-            film.splats[i as usize][c] += rgb[c];
-        }
+        add_fixed(&mut film.sums[i as usize], to_fixed(rgb));
     }
     film.dropped.merge(&out.dropped);
 }

@@ -6,7 +6,7 @@
 
 use crate::film::Film;
 use crate::integrators::Integrator;
-use crate::render::{render, RenderOptions};
+use crate::render::{render, RenderOptions, RenderStats};
 use crate::scene::Scene;
 use statrs::distribution::{ChiSquared, ContinuousCDF, StudentsT};
 
@@ -23,14 +23,41 @@ pub fn render_passes(
     seed: u64,
     threads: usize,
 ) -> Vec<Image> {
-    (0..k)
+    let opts = RenderOptions { seed, threads, progress: false };
+    render_pass_films(scene, integrator, &opts, spp, k).0.iter().map(Film::image).collect()
+}
+
+/// `render_passes`, keeping each pass's film (with its dropped samples) and
+/// the render statistics summed over passes.
+pub fn render_pass_films(
+    scene: &Scene,
+    integrator: &dyn Integrator,
+    opts: &RenderOptions,
+    spp: u32,
+    k: u32,
+) -> (Vec<Film>, RenderStats) {
+    let mut total = RenderStats::default();
+    let films = (0..k)
         .map(|i| {
             let mut film = Film::new(scene.camera.width, scene.camera.height);
-            let opts = RenderOptions { seed: seed.wrapping_add(i as u64), threads, progress: false };
-            render(scene, integrator, &opts, &mut film, 0..spp);
-            film.image()
+            let pass = RenderOptions { seed: opts.seed.wrapping_add(i as u64), ..opts.clone() };
+            total.add(&render(scene, integrator, &pass, &mut film, 0..spp));
+            film
         })
-        .collect()
+        .collect();
+    (films, total)
+}
+
+/// Per-pixel mean and sample variance (K - 1 in the denominator) over
+/// passes: the variance of one pass's pixel; that of the mean is it / K.
+pub fn pixel_mean_variance(passes: &[Image]) -> (Image, Image) {
+    let k = passes.len() as f64;
+    let n = passes.first().map_or(0, Vec::len);
+    let at = |i: usize, c: usize| passes.iter().map(move |p| p[i][c] as f64);
+    let mean: Vec<[f64; 3]> = (0..n).map(|i| [0, 1, 2].map(|c| at(i, c).sum::<f64>() / k)).collect();
+    let var =
+        (0..n).map(|i| [0, 1, 2].map(|c| (at(i, c).map(|x| (x - mean[i][c]).powi(2)).sum::<f64>() / (k - 1.0)) as f32));
+    (mean.iter().map(|m| m.map(|c| c as f32)).collect(), var.collect())
 }
 
 /// Per-block means and standard errors of the mean over passes.

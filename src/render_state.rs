@@ -1,0 +1,264 @@
+//! The accumulation state of a render: the film's exact sums (film.rs), which
+//! sample indices they hold, and what was rendered (scene, integrator, seed,
+//! resolution, ...). It is what a checkpoint stores (`--checkpoint-every`,
+//! `--resume`) and what a part of a split render leaves for `prism merge`
+//! (`--sample-range`), so that resumed and merged renders are bit-identical
+//! to one uninterrupted run (docs/cluster.md).
+//!
+//! File format, version 1 (little-endian):
+//!
+//! | bytes          | content                                               |
+//! |----------------|-------------------------------------------------------|
+//! | 8              | magic `PRISMST\0`                                     |
+//! | 4              | format version (u32)                                  |
+//! | 4              | header length n (u32)                                 |
+//! | n              | header: JSON `Header` (identity, sample ranges, ...)  |
+//! | 48 x w x h     | the film's sums, row-major, r g b as i128             |
+//! | 8              | FNV-1a 64 of everything before (u64)                  |
+//!
+//! Loading checks all of it, so a truncated, corrupt or foreign file is a
+//! clear error rather than a wrong image.
+
+use crate::film::{write_atomically, DroppedSamples, Film};
+use anyhow::{bail, ensure, Context, Result};
+use serde::{Deserialize, Serialize};
+use std::ops::Range;
+use std::path::Path;
+
+const MAGIC: &[u8; 8] = b"PRISMST\0";
+const VERSION: u32 = 1;
+
+/// What makes two renders' sums addable: same scene content, estimator,
+/// seed, resolution and estimator options.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Identity {
+    /// The scene file as it was named (for people: parts rendered on other
+    /// machines may name it differently; `scene_hash` is what is compared).
+    pub scene: String,
+    /// FNV-1a 64 of the scene file's bytes, in hex.
+    pub scene_hash: String,
+    pub integrator: String,
+    pub seed: u64,
+    pub width: u32,
+    pub height: u32,
+    pub max_depth: u32,
+    pub mis: String,
+}
+
+impl Identity {
+    /// Fails, naming the first field that differs, unless `other` (from
+    /// `other_name`) may be added to `self` (from `name`).
+    pub fn ensure_same(&self, name: &str, other: &Identity, other_name: &str) -> Result<()> {
+        let (a, b) = (serde_json::to_value(self)?, serde_json::to_value(other)?);
+        let (serde_json::Value::Object(a), serde_json::Value::Object(b)) = (a, b) else { unreachable!() };
+        for (field, value) in a.iter().filter(|(f, _)| f.as_str() != "scene") {
+            if b[field] != *value {
+                bail!("{other_name} has {field} {} but {name} has {value}", b[field]);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The JSON header of a state file.
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Header {
+    identity: Identity,
+    /// Sample indices held, as sorted disjoint [start, end) ranges.
+    sample_ranges: Vec<[u32; 2]>,
+    dropped: DroppedSamples,
+}
+
+/// A film together with what it holds.
+pub struct RenderState {
+    pub identity: Identity,
+    /// Sample indices held, sorted and disjoint; their total is `film.spp`.
+    pub sample_ranges: Vec<Range<u32>>,
+    pub film: Film,
+}
+
+impl RenderState {
+    /// The samples held, when they are one contiguous range.
+    pub fn contiguous_range(&self) -> Option<Range<u32>> {
+        match self.sample_ranges.as_slice() {
+            [r] => Some(r.clone()),
+            _ => None,
+        }
+    }
+
+    /// Adds parts (name, state) of one image into one state: refuses parts of
+    /// different renders (`Identity`) and parts whose samples overlap.
+    pub fn merge(parts: Vec<(String, RenderState)>) -> Result<RenderState> {
+        let mut parts = parts.into_iter();
+        let (first_name, mut merged) = parts.next().context("nothing to merge")?;
+        let mut owners: Vec<(Range<u32>, String)> =
+            merged.sample_ranges.iter().map(|r| (r.clone(), first_name.clone())).collect();
+        for (name, part) in parts {
+            merged.identity.ensure_same(&first_name, &part.identity, &name)?;
+            owners.extend(part.sample_ranges.iter().map(|r| (r.clone(), name.clone())));
+            merged.film.add(&part.film)?;
+        }
+        owners.retain(|(r, _)| !r.is_empty());
+        owners.sort_by_key(|(r, _)| (r.start, r.end));
+        for w in owners.windows(2) {
+            let ((a, an), (b, bn)) = (&w[0], &w[1]);
+            ensure!(
+                b.start >= a.end,
+                "{bn} has samples {b:?}, which overlap {an}'s {a:?}: each sample must be counted once"
+            );
+        }
+        merged.sample_ranges = coalesce(owners.into_iter().map(|(r, _)| r));
+        Ok(merged)
+    }
+
+    /// Writes a state durably (temporary file, fsync, rename). It takes the
+    /// parts, not a `RenderState`: a render in progress owns its film apart.
+    pub fn save(path: &Path, identity: &Identity, sample_ranges: &[Range<u32>], film: &Film) -> Result<()> {
+        let header = Header {
+            identity: identity.clone(),
+            sample_ranges: sample_ranges.iter().map(|r| [r.start, r.end]).collect(),
+            dropped: film.dropped,
+        };
+        let header = serde_json::to_vec(&header)?;
+        let mut bytes = Vec::with_capacity(24 + header.len() + film.sums.len() * 48);
+        bytes.extend_from_slice(MAGIC);
+        bytes.extend_from_slice(&VERSION.to_le_bytes());
+        bytes.extend_from_slice(&(header.len() as u32).to_le_bytes());
+        bytes.extend_from_slice(&header);
+        for c in film.sums.iter().flatten() {
+            bytes.extend_from_slice(&c.to_le_bytes());
+        }
+        bytes.extend_from_slice(&fnv1a(&bytes).to_le_bytes());
+        write_atomically(path, |tmp| {
+            std::fs::write(tmp, &bytes).with_context(|| format!("cannot write {}", tmp.display()))
+        })
+    }
+
+    /// Reads and validates a state file; errors name the file and the fault.
+    pub fn load(path: &Path) -> Result<RenderState> {
+        let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+        Self::parse(&bytes).with_context(|| format!("{}: not a usable prism state file", path.display()))
+    }
+
+    fn parse(bytes: &[u8]) -> Result<RenderState> {
+        ensure!(bytes.len() >= 24 && bytes.starts_with(MAGIC), "no prism state header (bad magic)");
+        let version = u32::from_le_bytes(bytes[8..12].try_into()?);
+        ensure!(version == VERSION, "format version {version}; this prism reads version {VERSION}");
+        let (body, sum) = bytes.split_at(bytes.len() - 8);
+        ensure!(
+            fnv1a(body) == u64::from_le_bytes(sum.try_into()?),
+            "truncated or corrupt: checksum mismatch ({} bytes)",
+            bytes.len()
+        );
+        let n = u32::from_le_bytes(bytes[12..16].try_into()?) as usize;
+        let json = body.get(16..16 + n).context("header length beyond the end of the file")?;
+        let header: Header = serde_json::from_slice(json).context("header")?;
+        let (w, h) = (header.identity.width, header.identity.height);
+        let data = &body[16 + n..];
+        ensure!(
+            data.len() == w as usize * h as usize * 48,
+            "{} bytes of sums, expected {} for a {w}x{h} film",
+            data.len(),
+            w as usize * h as usize * 48
+        );
+        let ranges: Vec<Range<u32>> = header.sample_ranges.iter().map(|r| r[0]..r[1]).collect();
+        ensure!(
+            !ranges.is_empty()
+                && ranges.iter().all(|r| r.start <= r.end)
+                && ranges.windows(2).all(|p| p[0].end < p[1].start),
+            "sample_ranges {:?} are not sorted, disjoint ranges",
+            header.sample_ranges
+        );
+        let mut film = Film::new(w, h);
+        for (sum, bytes) in film.sums.iter_mut().flatten().zip(data.chunks_exact(16)) {
+            *sum = i128::from_le_bytes(bytes.try_into()?);
+        }
+        film.spp = ranges.iter().map(|r| r.len() as u64).sum();
+        film.dropped = header.dropped;
+        Ok(RenderState { identity: header.identity, sample_ranges: ranges, film })
+    }
+}
+
+/// Joins touching ranges of a sorted, disjoint list (keeps one empty range
+/// if there is nothing else, so a state always names where it starts).
+fn coalesce(ranges: impl Iterator<Item = Range<u32>>) -> Vec<Range<u32>> {
+    let mut out: Vec<Range<u32>> = Vec::new();
+    for r in ranges {
+        match out.last_mut() {
+            Some(last) if last.end == r.start => last.end = r.end,
+            _ => out.push(r),
+        }
+    }
+    if out.is_empty() {
+        out.push(0..0);
+    }
+    out
+}
+
+/// FNV-1a, 64 bits: a checksum for state files and the scene's identity
+/// (not cryptographic; it catches accidents, not adversaries).
+pub fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn state(seed: u64, range: Range<u32>) -> RenderState {
+        let identity = Identity {
+            scene: "s.json".into(),
+            scene_hash: "0".into(),
+            integrator: "path".into(),
+            seed,
+            width: 2,
+            height: 1,
+            max_depth: 5,
+            mis: "power".into(),
+        };
+        let mut film = Film::new(2, 1);
+        film.sums = vec![[1, -2, i128::MAX / 4], [3, 4, 5]];
+        film.spp = range.len() as u64;
+        RenderState { identity, sample_ranges: vec![range], film }
+    }
+
+    #[test]
+    fn round_trips_and_rejects_damage() {
+        let s = state(1, 16..32);
+        let dir = std::env::temp_dir().join(format!("prism-state-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("a.state");
+        RenderState::save(&path, &s.identity, &s.sample_ranges, &s.film).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        let back = RenderState::parse(&bytes).unwrap();
+        assert_eq!(
+            (back.identity, back.sample_ranges, back.film.sums, back.film.spp),
+            (s.identity, s.sample_ranges, s.film.sums, 16)
+        );
+        let err = |b: &[u8]| RenderState::parse(b).err().map(|e| e.to_string()).unwrap_or_default();
+        assert!(err(&bytes[..bytes.len() - 1]).contains("checksum"));
+        let mut flipped = bytes.clone();
+        flipped[40] ^= 1;
+        assert!(err(&flipped).contains("checksum"));
+        assert!(err(b"P6 not a state file at all").contains("magic"));
+        let mut future = bytes.clone();
+        future[8] = 9;
+        assert!(err(&future).contains("version 9"));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn merge_adds_and_refuses_mismatch_or_overlap() {
+        let m = RenderState::merge(vec![("b".into(), state(1, 16..32)), ("a".into(), state(1, 0..16))]).unwrap();
+        assert_eq!(
+            (m.sample_ranges.as_slice(), m.film.spp, m.film.sums[1]),
+            (std::slice::from_ref(&(0..32)), 32, [6, 8, 10])
+        );
+        let e = RenderState::merge(vec![("a".into(), state(1, 0..16)), ("b".into(), state(2, 16..32))]);
+        assert!(e.err().unwrap().to_string().contains("b has seed 2 but a has 1"));
+        let e = RenderState::merge(vec![("a".into(), state(1, 0..16)), ("b".into(), state(1, 8..24))]);
+        assert!(e.err().unwrap().to_string().contains("overlap"));
+    }
+}
