@@ -95,6 +95,16 @@ json.dump(new, open(path, "w"))
 PYEOF
 }
 
+summary() { # KEY JSON: one progress line
+    "$PY" - "$1" "$2" <<'PYEOF'
+import json, sys
+key, r = sys.argv[1], json.loads(sys.argv[2])
+first = f" (first call {r['first_seconds']:.2f} s)" if r.get("first_seconds") else ""
+print(f"   {key}: {r['wall_seconds']:.2f} s{first}, CPU {r['cpu_seconds']:.2f} s, "
+      f"{r['samples'] / r['wall_seconds'] / 1e6:.3f} Msamples/s")
+PYEOF
+}
+
 prism_run() { # KEY INTEGRATOR ROUND
     local exr="$OUT/images/$1-r$3.exr" t
     t=$(mktemp)
@@ -112,7 +122,7 @@ print(json.dumps({"key": key, "label": f"prism {integrator}", "out": exr, "sampl
 PYEOF
 )
     rm -f "$t"
-    echo "   $1: $(echo "$json" | "$PY" -c 'import json,sys; r=json.load(sys.stdin); print(f"{r[\"wall_seconds\"]:.2f} s, {r[\"samples\"]/r[\"wall_seconds\"]/1e6:.3f} Msamples/s")')"
+    summary "$1" "$json"
     keep_best "$1" "$json"
 }
 
@@ -132,7 +142,7 @@ r.update(key=key, label=f"Mitsuba {r['variant']} {r['integrator']}", wall_second
 print(json.dumps(r))
 PYEOF
 )
-    echo "   $1: $(echo "$json" | "$PY" -c 'import json,sys; r=json.load(sys.stdin); print(f"{r[\"wall_seconds\"]:.2f} s (first call {r[\"first_seconds\"]:.2f} s), {r[\"samples\"]/r[\"wall_seconds\"]/1e6:.3f} Msamples/s")')"
+    summary "$1" "$json"
     keep_best "$1" "$json"
 }
 
