@@ -91,9 +91,9 @@ def main():
             scene["objects"].append({"name": "icosphere", "material": "white", "shape": {
                 "type": "sphere", "center": [186.0, 265.0, 168.0], "radius": 100.0, "subdivisions": level}})
             tris += 20 * 4**level
-        path = out / f"cornell-sphere-{tris}.json"
+        path = out / f"scene-{tris}.json"
         path.write_text(json.dumps(scene))
-        r = run_prism(a.prism, path, out / f"cornell-sphere-{tris}.exr", a)
+        r = run_prism(a.prism, path, out / f"render-{tris}.exr", a)
         r["triangles"] = tris
         rows.append(r)
         print(f"  {tris:>9} triangles: render {r['render_s']:.2f} s, setup {r['process_s'] - r['render_s']:.2f} s, "
