@@ -59,6 +59,7 @@ if [[ -z ${DRJIT_LIBLLVM_PATH:-} ]]; then
     if ! DRJIT_LIBLLVM_PATH=$(find_llvm); then
         if [[ $(id -u) == 0 ]]; then
             echo "== installing libllvm19 (apt-get install -y libllvm19)"
+            export DEBIAN_FRONTEND=noninteractive
             apt-get install -y libllvm19 >/dev/null || { apt-get update >/dev/null && apt-get install -y libllvm19 >/dev/null; }
             DRJIT_LIBLLVM_PATH=$(find_llvm)
         else
@@ -158,7 +159,7 @@ done
 
 # --- 5. reference and table
 REF="$OUT/reference.exr"
-if ! "$PY" -c "import json,sys; m=json.load(open('$OUT/reference.json')); sys.exit(not (m['spp']*m['passes']==$REF_SPP and m['width']==$RES))" 2>/dev/null; then
+if ! "$PY" -c "import json,sys; m=json.load(open('$OUT/reference.json')); sys.exit(not (m['spp']*m['passes']==$REF_SPP and m['width']==$RES and m['scene']=='$SCENE'))" 2>/dev/null; then
     echo "== reference: prism path, $REF_SPP spp ($REF_PASSES passes, seeds 1000.., independent of the runs' seeds)"
     "$PRISM" reference "$SCENE" --integrator path --spp $((REF_SPP / REF_PASSES)) --passes $REF_PASSES \
         --width "$RES" --height "$RES" --threads "$THREADS" --out "$REF"

@@ -108,7 +108,8 @@ def main():
                 "mrays_per_s"]
         f.write(",".join(keys) + "\n")
         for r in rows:
-            f.write(",".join("" if r[k] is None else f"{r[k]:.6g}" for k in keys) + "\n")
+            f.write(",".join("" if r[k] is None else str(r[k]) if isinstance(r[k], int) else f"{r[k]:.6g}" for k in keys))
+            f.write("\n")
     svg_chart(rows, out / "render-time-vs-triangles.svg")
     print(f"prism path, {a.res}x{a.res}, {a.spp} spp, {a.threads} threads\n")
     print("| triangles | render s | Mrays/s | setup s (load + BVH + write) | peak RSS MB | bytes/triangle (RSS over empty box) |")
