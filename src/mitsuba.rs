@@ -78,10 +78,12 @@ pub fn command(a: ExportMitsubaArgs) -> Result<()> {
     Ok(())
 }
 
-/// Triangles sharing a material and an emission.
+/// Triangles sharing a material, an emission and whether they have shading
+/// normals (a PLY has them for every vertex or for none).
 struct Group {
     material: u32,
     emission: Option<Spectrum>,
+    smooth: bool,
     positions: Vec<Vec3A>,
     normals: Vec<Vec3A>,
 }
@@ -107,22 +109,17 @@ pub fn export(scene: &Scene, dir: &Path, spp: u32) -> Result<usize> {
             Light::Area(a) => a.le.clone(),
             _ => unreachable!("a triangle's light is an area light"),
         });
-        let k = match groups.iter().position(|g| g.material == material && g.emission == emission) {
+        let smooth = ns.is_some();
+        let same = |g: &Group| g.material == material && g.emission == emission && g.smooth == smooth;
+        let k = match groups.iter().position(same) {
             Some(k) => k,
             None => {
-                groups.push(Group { material, emission, positions: Vec::new(), normals: Vec::new() });
+                groups.push(Group { material, emission, smooth, positions: Vec::new(), normals: Vec::new() });
                 groups.len() - 1
             }
         };
-        let g = &mut groups[k];
-        if g.positions.is_empty() || g.normals.is_empty() == ns.is_none() {
-            g.positions.extend(v);
-            if let Some(n) = ns {
-                g.normals.extend(n);
-            }
-        } else {
-            bail!("triangle {i}: a mesh mixes triangles with and without shading normals");
-        }
+        groups[k].positions.extend(v);
+        groups[k].normals.extend(ns.into_iter().flatten());
     }
     let cam = &scene.camera;
     let (forward, up, fov_y) = cam.orientation();
@@ -255,6 +252,33 @@ mod tests {
         assert!(xml.contains("fov_axis\" value=\"y\""));
         let ply = std::fs::read(dir.join("meshes/000.ply")).unwrap();
         assert!(ply.starts_with(b"ply\nformat binary_little_endian 1.0\n"));
+        let _ = std::fs::remove_dir_all(dir);
+    }
+
+    #[test]
+    fn meshes_with_and_without_normals_go_to_separate_plys() {
+        use crate::camera::Camera;
+        use crate::materials::Diffuse;
+        use crate::scene::SceneBuilder;
+        use crate::shapes::Mesh;
+        let camera = Camera::new(Vec3A::new(0.0, 0.0, -5.0), Vec3A::ZERO, Vec3A::Y, 40.0, 8, 8);
+        let mut b = SceneBuilder::new(camera);
+        let m = b.material("grey", Bsdf::Diffuse(Diffuse::new(Spectrum::Constant(0.5))));
+        b.mesh("smooth", Mesh::sphere(Vec3A::ZERO, 1.0, 1, true), m, None);
+        let quad = [Vec3A::new(-2., -1., 2.), Vec3A::new(2., -1., 2.), Vec3A::new(2., 1., 2.), Vec3A::new(-2., 1., 2.)];
+        b.mesh("flat", Mesh::quad(quad), m, Some((Spectrum::Constant(1.0), false)));
+        let dir = std::env::temp_dir().join(format!("prism-mitsuba-normals-{}", std::process::id()));
+        assert_eq!(export(&b.build(), &dir, 1).unwrap(), 2);
+        let header = |f: &str| {
+            let bytes = std::fs::read(dir.join(f)).unwrap();
+            let end = bytes.windows(10).position(|w| w == b"end_header").unwrap();
+            String::from_utf8_lossy(&bytes[..end]).into_owned()
+        };
+        assert!(header("meshes/000.ply").contains("property float nx"));
+        assert!(!header("meshes/001.ply").contains("property float nx"));
+        let xml = std::fs::read_to_string(dir.join("scene.xml")).unwrap();
+        assert_eq!(xml.matches("face_normals").count(), 1);
+        assert_eq!(xml.matches("<emitter type=\"area\">").count(), 1);
         let _ = std::fs::remove_dir_all(dir);
     }
 }
