@@ -29,6 +29,12 @@ def load(path):
     return np.array(mi.Bitmap(str(path)), dtype=np.float64)[..., :3]
 
 
+def per_cpu_second(r):
+    """Samples per CPU second; NaN when the render was too short for the
+    10 ms resolution of the CPU clock."""
+    return r["samples"] / r["cpu_seconds"] if r["cpu_seconds"] > 0 else float("nan")
+
+
 def rel_mse(x, r):
     return float(np.mean((x - r) ** 2 / (r * r + 0.01)))
 
@@ -62,7 +68,7 @@ def main():
             extra = f" (first call {r['first_seconds']:.2f} s)"
         print(
             f"| {r['label']} | {r['samples'] / 1e6:.2f} M | {r['wall_seconds']:.2f}{extra} | {r['cpu_seconds']:.2f} "
-            f"| {r['samples'] / r['wall_seconds'] / 1e6:.3f} | {r['samples'] / r['cpu_seconds'] / 1e6:.3f} "
+            f"| {r['samples'] / r['wall_seconds'] / 1e6:.3f} | {per_cpu_second(r) / 1e6:.3f} "
             f"| {r['rel_mse']:.3e} | {r['rel_mse_at_prism_path_time']:.3e} | {r['efficiency']:.2f} "
             f"| {', '.join(f'{m:.4f}' for m in r['mean_ratio'])} |"
         )
@@ -78,7 +84,7 @@ def main():
         if a in by_key and b in by_key:
             ra, rb = by_key[a], by_key[b]
             wall = (ra["samples"] / ra["wall_seconds"]) / (rb["samples"] / rb["wall_seconds"])
-            cpu = (ra["samples"] / ra["cpu_seconds"]) / (rb["samples"] / rb["cpu_seconds"])
+            cpu = per_cpu_second(ra) / per_cpu_second(rb)
             eff = ra["efficiency"] / rb["efficiency"]
             ratios.append({"prism": a, "mitsuba": b, "wall": wall, "cpu": cpu, "efficiency": eff, "target": target})
             print(f"| {ra['label']} / {rb['label']} | {wall:.2f}x | {cpu:.2f}x | {eff:.2f}x | {f'>= {target:.0f}x' if target else '-'} |")

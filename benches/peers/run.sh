@@ -16,7 +16,8 @@
 #    efficiency, ratios).
 # Environment: SPP (64), RES (256), THREADS (2), REF_SPP (2048), ROUNDS (1:
 # with more, every renderer runs ROUNDS times, interleaved, and the fastest
-# round counts), SCENE (scenes/cornell-box.json), OUT (target/peers).
+# round counts), SCENE (scenes/cornell-box.json), OUT (target/peers), VENV
+# (target/peers-venv).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 
@@ -27,7 +28,7 @@ REF_SPP=${REF_SPP:-2048}
 ROUNDS=${ROUNDS:-1}
 SCENE=${SCENE:-scenes/cornell-box.json}
 OUT=${OUT:-target/peers}
-VENV=target/peers-venv
+VENV=${VENV:-target/peers-venv}
 MITSUBA_VERSION=3.9.1
 DRJIT_VERSION=1.5.0
 NUMPY_VERSION=2.1.3
