@@ -66,6 +66,12 @@ impl Camera {
         c
     }
 
+    /// Optical axis, screen up (both unit) and the full vertical field of
+    /// view in degrees (scene exporters).
+    pub fn orientation(&self) -> (Vec3A, Vec3A, f32) {
+        (self.forward, self.up, 2.0 * self.half_h.atan().to_degrees())
+    }
+
     /// Area of the image rectangle on the plane at distance 1.
     #[inline]
     pub fn image_area(&self) -> f32 {

@@ -9,6 +9,7 @@ pub mod converge;
 pub mod film;
 pub mod geometry;
 pub mod light;
+pub mod mitsuba;
 pub mod path;
 pub mod reference;
 pub mod render;

@@ -45,6 +45,8 @@ enum Command {
     /// Progressive renders against a reference: relMSE vs time and spp per
     /// integrator, charts, efficiency table and report (VALIDATION.md §6).
     Converge(prism::converge::ConvergeArgs),
+    /// Export a scene for Mitsuba 3 (XML + PLY) to render it side by side (benches/peers).
+    ExportMitsuba(prism::mitsuba::ExportMitsubaArgs),
     /// Regenerate the Jakob-Hanika RGB-to-spectrum coefficient table.
     RgbTable {
         /// Table resolution per axis.
@@ -219,6 +221,7 @@ fn main() -> ExitCode {
         Command::Merge { out, parts } => merge_command(&out, &parts),
         Command::Compare { image, reference } => compare_command(&image, &reference),
         Command::Converge(args) => prism::converge::command(args),
+        Command::ExportMitsuba(args) => prism::mitsuba::command(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -332,4 +332,11 @@ impl Scene {
     pub fn triangle_count(&self) -> usize {
         self.tris.len()
     }
+
+    /// Triangle `i` as built (scene exporters): vertices in winding order,
+    /// per-vertex shading normals, material, area light.
+    pub fn triangle(&self, i: usize) -> ([Vec3A; 3], Option<[Vec3A; 3]>, u32, Option<u32>) {
+        let t = &self.tris[i];
+        (t.v, t.ns, t.material, (t.light != NO_LIGHT).then_some(t.light))
+    }
 }

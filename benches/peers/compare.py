@@ -1,0 +1,98 @@
+#!/usr/bin/env python3
+"""Tabulate a benches/peers/run.sh run: throughput, ratios and error.
+
+Reads target/peers/runs/*.json (one per renderer, written by run.sh) and the
+reference EXR; for each image computes, against the reference:
+  relMSE  mean over pixels and channels of (x - r)^2 / (r^2 + 0.01)
+          (prism's definition, src/stats.rs `rel_mse`)
+  mean    the image mean per channel divided by the reference's (R, G, B):
+          bias between renderers shows here, noise averages out
+and the equal-time figures: efficiency = 1 / (relMSE x seconds), and the
+relMSE each renderer would reach in prism path's time (relMSE scales as
+1/time for an unbiased estimator: relMSE x seconds / seconds_prism_path).
+Seconds are render wall seconds; the CPU columns use user+sys seconds of
+the render (fairer on a machine shared with other jobs). Prints Markdown and
+writes results.json next to the runs.
+"""
+
+import json
+import sys
+from pathlib import Path
+
+import mitsuba as mi
+import numpy as np
+
+mi.set_variant("scalar_rgb")
+
+
+def load(path):
+    return np.array(mi.Bitmap(str(path)), dtype=np.float64)[..., :3]
+
+
+def per_cpu_second(r):
+    """Samples per CPU second; NaN when the render was too short for the
+    10 ms resolution of the CPU clock."""
+    return r["samples"] / r["cpu_seconds"] if r["cpu_seconds"] > 0 else float("nan")
+
+
+def rel_mse(x, r):
+    return float(np.mean((x - r) ** 2 / (r * r + 0.01)))
+
+
+def main():
+    out = Path(sys.argv[1] if len(sys.argv) > 1 else "target/peers")
+    ref_path = out / "reference.exr"
+    ref = load(ref_path)
+    ref_mean = ref.reshape(-1, 3).mean(0)
+    rows = []
+    for f in sorted((out / "runs").glob("*.json")):
+        run = json.loads(f.read_text())
+        img = load(run["out"])
+        if img.shape != ref.shape:
+            sys.exit(f"error: {run['out']} is {img.shape}, the reference {ref.shape}")
+        run["rel_mse"] = rel_mse(img, ref)
+        run["mean_ratio"] = (img.reshape(-1, 3).mean(0) / ref_mean).tolist()
+        run["efficiency"] = 1.0 / (run["rel_mse"] * run["wall_seconds"])
+        rows.append(run)
+    by_key = {r["key"]: r for r in rows}
+    base = by_key.get("prism-path")
+    for r in rows:
+        r["rel_mse_at_prism_path_time"] = r["rel_mse"] * r["wall_seconds"] / base["wall_seconds"] if base else None
+
+    print(f"reference: {ref_path} ({json.loads(ref_path.with_suffix('.json').read_text())['command']})\n")
+    print("| renderer | samples | render s | CPU s | Msamples/s | Msamples/CPU-s | relMSE | relMSE at prism-path time | efficiency 1/(relMSE s) | mean R,G,B / reference |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---|")
+    for r in rows:
+        extra = ""
+        if r.get("first_seconds") is not None and r.get("first_seconds") != r["wall_seconds"]:
+            extra = f" (first call {r['first_seconds']:.2f} s)"
+        print(
+            f"| {r['label']} | {r['samples'] / 1e6:.2f} M | {r['wall_seconds']:.2f}{extra} | {r['cpu_seconds']:.2f} "
+            f"| {r['samples'] / r['wall_seconds'] / 1e6:.3f} | {per_cpu_second(r) / 1e6:.3f} "
+            f"| {r['rel_mse']:.3e} | {r['rel_mse_at_prism_path_time']:.3e} | {r['efficiency']:.2f} "
+            f"| {', '.join(f'{m:.4f}' for m in r['mean_ratio'])} |"
+        )
+    pairs = [
+        ("prism-path", "mitsuba-llvm-path", 2.0),
+        ("prism-path", "mitsuba-scalar-path", None),
+        ("prism-light", "mitsuba-llvm-ptracer", 2.0),
+    ]
+    print("\n| ratio (prism / Mitsuba) | samples/s (wall) | samples/CPU-s | efficiency (equal time) | target (samples/s) |")
+    print("|---|---:|---:|---:|---:|")
+    ratios = []
+    for a, b, target in pairs:
+        if a in by_key and b in by_key:
+            ra, rb = by_key[a], by_key[b]
+            wall = (ra["samples"] / ra["wall_seconds"]) / (rb["samples"] / rb["wall_seconds"])
+            cpu = per_cpu_second(ra) / per_cpu_second(rb)
+            eff = ra["efficiency"] / rb["efficiency"]
+            ratios.append({"prism": a, "mitsuba": b, "wall": wall, "cpu": cpu, "efficiency": eff, "target": target})
+            print(f"| {ra['label']} / {rb['label']} | {wall:.2f}x | {cpu:.2f}x | {eff:.2f}x | {f'>= {target:.0f}x' if target else '-'} |")
+    if "prism-bdpt" in by_key:
+        r = by_key["prism-bdpt"]
+        print(f"\nprism bdpt: {r['samples'] / r['wall_seconds'] / 1e6:.3f} Msamples/s (target >= 1)")
+    (out / "results.json").write_text(json.dumps({"runs": rows, "ratios": ratios}, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,168 @@
+#!/usr/bin/env bash
+# prism vs Mitsuba 3 on the same scene, back to back (docs/performance.md).
+#
+#   benches/peers/run.sh            # from the repository root
+#
+# 1. a virtual environment target/peers-venv with Mitsuba (pinned) from PyPI;
+# 2. a libLLVM >= 19 for Mitsuba's LLVM variants (Dr.Jit loads it at run
+#    time; Debian 12's libLLVM 15 aborts with "Cannot select: fminimum");
+#    installed with apt if root, else the apt command is printed;
+# 3. `prism export-mitsuba` writes scenes/cornell-box.json as Mitsuba XML + PLY;
+# 4. renders, back to back, SPP spp at RESxRES on THREADS threads:
+#    prism path, light, bdpt; Mitsuba scalar_spectral path,
+#    llvm_ad_spectral path, llvm_ad_spectral ptracer;
+# 5. a high-spp prism reference (cached: delete target/peers/reference.exr
+#    to remake it), then compare.py prints the table (relMSE, equal-time
+#    efficiency, ratios).
+# Environment: SPP (64), RES (256), THREADS (2), REF_SPP (2048), ROUNDS (1:
+# with more, every renderer runs ROUNDS times, interleaved, and the fastest
+# round counts), SCENE (scenes/cornell-box.json), OUT (target/peers), VENV
+# (target/peers-venv).
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+
+SPP=${SPP:-64}
+RES=${RES:-256}
+THREADS=${THREADS:-2}
+REF_SPP=${REF_SPP:-2048}
+ROUNDS=${ROUNDS:-1}
+SCENE=${SCENE:-scenes/cornell-box.json}
+OUT=${OUT:-target/peers}
+VENV=${VENV:-target/peers-venv}
+MITSUBA_VERSION=3.9.1
+DRJIT_VERSION=1.5.0
+NUMPY_VERSION=2.1.3
+REF_PASSES=8
+
+if (( REF_SPP % REF_PASSES != 0 )); then
+    echo "error: REF_SPP ($REF_SPP) must be a multiple of $REF_PASSES" >&2
+    exit 1
+fi
+
+# --- 1. Mitsuba in a venv
+if ! "$VENV/bin/python" -c "import mitsuba, sys; sys.exit(mitsuba.__version__ != '$MITSUBA_VERSION')" 2>/dev/null; then
+    echo "== installing mitsuba==$MITSUBA_VERSION into $VENV"
+    python3 -m venv "$VENV"
+    "$VENV/bin/pip" install --quiet "mitsuba==$MITSUBA_VERSION" "drjit==$DRJIT_VERSION" "numpy==$NUMPY_VERSION"
+fi
+PY="$VENV/bin/python"
+
+# --- 2. libLLVM >= 19
+find_llvm() {
+    local f
+    for f in /usr/lib/x86_64-linux-gnu/libLLVM.so.{21,20,19}* /usr/lib/x86_64-linux-gnu/libLLVM-{21,20,19}.so \
+        /usr/lib/llvm-{21,20,19}/lib/libLLVM.so*; do
+        [[ -e $f ]] && { echo "$f"; return 0; }
+    done
+    return 1
+}
+if [[ -z ${DRJIT_LIBLLVM_PATH:-} ]]; then
+    if ! DRJIT_LIBLLVM_PATH=$(find_llvm); then
+        if [[ $(id -u) == 0 ]]; then
+            echo "== installing libllvm19 (apt-get install -y libllvm19)"
+            export DEBIAN_FRONTEND=noninteractive
+            apt-get install -y libllvm19 >/dev/null || { apt-get update >/dev/null && apt-get install -y libllvm19 >/dev/null; }
+            DRJIT_LIBLLVM_PATH=$(find_llvm)
+        else
+            echo "error: Mitsuba's LLVM variants need libLLVM >= 19; run: sudo apt-get install libllvm19" >&2
+            exit 1
+        fi
+    fi
+fi
+export DRJIT_LIBLLVM_PATH
+
+# --- 3. prism and the exported scene
+CARGO_BUILD_JOBS=${CARGO_BUILD_JOBS:-1} cargo build --release --quiet
+PRISM=target/release/prism
+mkdir -p "$OUT/runs" "$OUT/images"
+rm -f "$OUT"/runs/*.json
+"$PRISM" export-mitsuba "$SCENE" "$OUT/mitsuba-scene" --width "$RES" --height "$RES" --spp "$SPP"
+
+echo "== machine: $(lscpu | sed -n 's/^Model name: *//p'), $(nproc) CPUs, load $(cut -d' ' -f1-3 /proc/loadavg)"
+echo "== $("$PY" -c 'import mitsuba, drjit; print("mitsuba", mitsuba.__version__, "drjit", drjit.__version__, "libLLVM", ".".join(map(str, drjit.detail.llvm_version())))')"
+
+# --- 4. renders, back to back; each writes $OUT/runs/<key>.json for compare.py
+# keep_best KEY JSON: keeps the faster of this round's and an earlier round's run.
+keep_best() {
+    "$PY" - "$OUT/runs/$1.json" "$2" <<'PYEOF'
+import json, sys
+path, new = sys.argv[1], json.loads(sys.argv[2])
+try:
+    old = json.load(open(path))
+    if old["wall_seconds"] <= new["wall_seconds"]:
+        new = old
+except FileNotFoundError:
+    pass
+json.dump(new, open(path, "w"))
+PYEOF
+}
+
+summary() { # KEY JSON: one progress line
+    "$PY" - "$1" "$2" <<'PYEOF'
+import json, sys
+key, r = sys.argv[1], json.loads(sys.argv[2])
+first = f" (first call {r['first_seconds']:.2f} s)" if r.get("first_seconds") else ""
+print(f"   {key}: {r['wall_seconds']:.2f} s{first}, CPU {r['cpu_seconds']:.2f} s, "
+      f"{r['samples'] / r['wall_seconds'] / 1e6:.3f} Msamples/s")
+PYEOF
+}
+
+prism_run() { # KEY INTEGRATOR ROUND
+    local exr="$OUT/images/$1-r$3.exr" t
+    t=$(mktemp)
+    /usr/bin/time -f '%U %S' -o "$t" "$PRISM" render "$SCENE" --integrator "$2" --spp "$SPP" --width "$RES" \
+        --height "$RES" --threads "$THREADS" --seed "$3" --quiet --out "$exr"
+    local json
+    json=$("$PY" - "$exr" "$t" "$1" "$2" <<'PYEOF'
+import json, sys
+exr, t, key, integrator = sys.argv[1:]
+side = json.load(open(exr.replace(".exr", ".json")))
+user, sys_ = map(float, open(t).read().split()[-2:])
+print(json.dumps({"key": key, "label": f"prism {integrator}", "out": exr, "samples": side["spp"] * side["width"] * side["height"],
+                  "wall_seconds": side["wall_seconds"], "cpu_seconds": user + sys_, "first_seconds": None,
+                  "note": "CPU s: whole process (scene load and BVH build included, a few ms)"}))
+PYEOF
+)
+    rm -f "$t"
+    summary "$1" "$json"
+    keep_best "$1" "$json"
+}
+
+mitsuba_run() { # KEY VARIANT INTEGRATOR ROUND
+    local exr="$OUT/images/$1-r$4.exr" raw
+    local repeat=2
+    [[ $2 == scalar_* ]] && repeat=1 # no JIT: one render is the measurement
+    raw=$("$PY" benches/peers/mitsuba_render.py "$OUT/mitsuba-scene/scene.xml" --variant "$2" --integrator "$3" \
+        --spp "$SPP" --width "$RES" --height "$RES" --threads "$THREADS" --repeat "$repeat" --out "$exr")
+    local json
+    json=$("$PY" - "$raw" "$1" <<'PYEOF'
+import json, sys
+r, key = json.loads(sys.argv[1]), sys.argv[2]
+last = r["runs"][-1]
+r.update(key=key, label=f"Mitsuba {r['variant']} {r['integrator']}", wall_seconds=last["wall_seconds"],
+         cpu_seconds=last["cpu_seconds"])
+print(json.dumps(r))
+PYEOF
+)
+    summary "$1" "$json"
+    keep_best "$1" "$json"
+}
+
+for round in $(seq 1 "$ROUNDS"); do
+    echo "== round $round of $ROUNDS: ${RES}x${RES}, $SPP spp, $THREADS threads"
+    prism_run prism-path path "$round"
+    mitsuba_run mitsuba-llvm-path llvm_ad_spectral path "$round"
+    mitsuba_run mitsuba-scalar-path scalar_spectral path "$round"
+    prism_run prism-light light "$round"
+    mitsuba_run mitsuba-llvm-ptracer llvm_ad_spectral ptracer "$round"
+    prism_run prism-bdpt bdpt "$round"
+done
+
+# --- 5. reference and table
+REF="$OUT/reference.exr"
+if ! "$PY" -c "import json,sys; m=json.load(open('$OUT/reference.json')); sys.exit(not (m['spp']*m['passes']==$REF_SPP and m['width']==$RES and m['scene']=='$SCENE'))" 2>/dev/null; then
+    echo "== reference: prism path, $REF_SPP spp ($REF_PASSES passes, seeds 1000.., independent of the runs' seeds)"
+    "$PRISM" reference "$SCENE" --integrator path --spp $((REF_SPP / REF_PASSES)) --passes $REF_PASSES \
+        --width "$RES" --height "$RES" --threads "$THREADS" --out "$REF"
+fi
+"$PY" benches/peers/compare.py "$OUT" | tee "$OUT/table.md"

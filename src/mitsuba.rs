@@ -1,0 +1,284 @@
+//! `prism export-mitsuba`: writes a loaded scene as a Mitsuba 3 scene (XML
+//! plus one binary PLY per material and emission), so that prism and
+//! Mitsuba can render the same scene side by side (benches/peers/run.sh,
+//! docs/performance.md).
+//!
+//! What is exported is the scene as prism built it, not the JSON it came
+//! from: the same triangles (vertex positions and winding, so emitters face
+//! the same way), and every spectrum sampled at 1 nm over prism's range
+//! [360, 830] nm as a Mitsuba `<spectrum value="lambda:value, ...">` list.
+//! Mitsuba interpolates such a list linearly and returns 0 outside it; prism
+//! looks its dense table up at the nearest integer nanometre, so the two
+//! agree to within the 1 nm step. Its spectral variants read an emitter's
+//! list as absolute spectral radiance, as prism does.
+//!
+//! Mapping, and where the two differ:
+//! - camera: prism's pinhole, `fov` = full vertical field of view ->
+//!   `perspective` with `fov_axis = "y"` and a `lookat` transform (Mitsuba's
+//!   screen x is up x forward, prism's is forward x up mirrored onto the
+//!   raster, i.e. the same picture);
+//! - film: `hdrfilm`, linear sRGB, float32, `box` filter of radius 0.5 (a
+//!   uniform point in the pixel, prism's pixel estimate);
+//! - `diffuse` -> `twosided` `diffuse`: prism's BSDFs reflect on both sides,
+//!   Mitsuba's are one-sided unless wrapped;
+//! - one-sided area emission -> `area` emitter on the same triangles;
+//! - no integrator in the file: benches/peers/mitsuba_render.py passes it
+//!   (`path` / `ptracer`, max_depth = -1: unbounded with Russian roulette).
+//!   Mitsuba's roulette starts at depth `rr_depth` (prism: after 4
+//!   scattering events, so rr_depth = 4) and continues with probability
+//!   min(max throughput, 0.95); prism has no 0.95 cap.
+//!
+//! Anything else (conductors, dielectrics, mirrors, point lights, the
+//! environment, two-sided emission) is refused with an error naming it:
+//! the benchmark scene needs none of them.
+//!
+//! | option   | default      | meaning                                  |
+//! |----------|--------------|------------------------------------------|
+//! | SCENE    | -            | prism scene (JSON or glTF)               |
+//! | DIR      | -            | output directory: scene.xml, meshes/     |
+//! | --width  | the scene's  | image width (XML default, `$width`)      |
+//! | --height | the scene's  | image height (`$height`)                 |
+//! | --spp    | 64           | samples per pixel (`$spp`)               |
+
+use crate::light::Light;
+use crate::materials::Bsdf;
+use crate::scene::{load_scene, Scene};
+use crate::spectrum::{Spectrum, LAMBDA_MAX, LAMBDA_MIN};
+use anyhow::{bail, Context, Result};
+use glam::Vec3A;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// `prism export-mitsuba SCENE DIR`.
+#[derive(clap::Args, Debug)]
+pub struct ExportMitsubaArgs {
+    /// Scene file (JSON or glTF).
+    pub scene: PathBuf,
+    /// Output directory (created if missing): scene.xml and meshes/*.ply.
+    pub dir: PathBuf,
+    #[arg(long)]
+    pub width: Option<u32>,
+    #[arg(long)]
+    pub height: Option<u32>,
+    #[arg(long, default_value_t = 64)]
+    pub spp: u32,
+}
+
+/// Runs the subcommand.
+pub fn command(a: ExportMitsubaArgs) -> Result<()> {
+    let mut builder = load_scene(&a.scene)?;
+    if let (Some(w), Some(h)) = (a.width, a.height) {
+        builder.set_resolution(w, h);
+    } else if a.width.is_some() || a.height.is_some() {
+        bail!("--width and --height must be given together");
+    }
+    let scene = builder.build();
+    let meshes = export(&scene, &a.dir, a.spp)?;
+    eprintln!("wrote {} ({} triangles in {meshes} meshes)", a.dir.join("scene.xml").display(), scene.triangle_count());
+    Ok(())
+}
+
+/// Triangles sharing a material, an emission and whether they have shading
+/// normals (a PLY has them for every vertex or for none).
+struct Group {
+    material: u32,
+    emission: Option<Spectrum>,
+    smooth: bool,
+    positions: Vec<Vec3A>,
+    normals: Vec<Vec3A>,
+}
+
+/// Writes `dir/scene.xml` and `dir/meshes/*.ply`; returns the mesh count.
+pub fn export(scene: &Scene, dir: &Path, spp: u32) -> Result<usize> {
+    let mesh_dir = dir.join("meshes");
+    std::fs::create_dir_all(&mesh_dir).with_context(|| format!("cannot create {}", mesh_dir.display()))?;
+    for (i, light) in scene.lights.iter().enumerate() {
+        match light {
+            Light::Area(a) if a.two_sided => {
+                bail!("light {}: two-sided emission has no Mitsuba area emitter equivalent", scene.light_names[i])
+            }
+            Light::Area(_) => {}
+            Light::Point(_) => bail!("light {}: point lights are not exported", scene.light_names[i]),
+            Light::Environment(_) => bail!("light {}: environment lights are not exported", scene.light_names[i]),
+        }
+    }
+    let mut groups: Vec<Group> = Vec::new();
+    for i in 0..scene.triangle_count() {
+        let (v, ns, material, light) = scene.triangle(i);
+        let emission = light.map(|l| match &scene.lights[l as usize] {
+            Light::Area(a) => a.le.clone(),
+            _ => unreachable!("a triangle's light is an area light"),
+        });
+        let smooth = ns.is_some();
+        let same = |g: &Group| g.material == material && g.emission == emission && g.smooth == smooth;
+        let k = match groups.iter().position(same) {
+            Some(k) => k,
+            None => {
+                groups.push(Group { material, emission, smooth, positions: Vec::new(), normals: Vec::new() });
+                groups.len() - 1
+            }
+        };
+        groups[k].positions.extend(v);
+        groups[k].normals.extend(ns.into_iter().flatten());
+    }
+    let cam = &scene.camera;
+    let (forward, up, fov_y) = cam.orientation();
+    let p = cam.position;
+    let t = p + forward;
+    let mut xml = String::new();
+    let _ = writeln!(xml, "<?xml version=\"1.0\" encoding=\"utf-8\"?>");
+    let _ = writeln!(
+        xml,
+        "<!-- Exported by `prism export-mitsuba` (src/mitsuba.rs); render with benches/peers/mitsuba_render.py. -->"
+    );
+    let _ = writeln!(xml, "<scene version=\"3.0.0\">");
+    let _ = writeln!(xml, "  <default name=\"spp\" value=\"{spp}\"/>");
+    let _ = writeln!(xml, "  <default name=\"width\" value=\"{}\"/>", cam.width);
+    let _ = writeln!(xml, "  <default name=\"height\" value=\"{}\"/>", cam.height);
+    let _ = writeln!(xml, "  <sensor type=\"perspective\">");
+    let _ = writeln!(xml, "    <string name=\"fov_axis\" value=\"y\"/>");
+    let _ = writeln!(xml, "    <float name=\"fov\" value=\"{fov_y}\"/>");
+    let _ = writeln!(xml, "    <transform name=\"to_world\">");
+    let _ = writeln!(
+        xml,
+        "      <lookat origin=\"{}, {}, {}\" target=\"{}, {}, {}\" up=\"{}, {}, {}\"/>",
+        p.x, p.y, p.z, t.x, t.y, t.z, up.x, up.y, up.z
+    );
+    let _ = writeln!(xml, "    </transform>");
+    let _ =
+        writeln!(xml, "    <sampler type=\"independent\"><integer name=\"sample_count\" value=\"$spp\"/></sampler>");
+    let _ = writeln!(xml, "    <film type=\"hdrfilm\">");
+    let _ = writeln!(xml, "      <integer name=\"width\" value=\"$width\"/>");
+    let _ = writeln!(xml, "      <integer name=\"height\" value=\"$height\"/>");
+    let _ = writeln!(xml, "      <string name=\"pixel_format\" value=\"rgb\"/>");
+    let _ = writeln!(xml, "      <string name=\"component_format\" value=\"float32\"/>");
+    let _ = writeln!(xml, "      <rfilter type=\"box\"/>");
+    let _ = writeln!(xml, "    </film>");
+    let _ = writeln!(xml, "  </sensor>");
+    for (k, g) in groups.iter().enumerate() {
+        let material = &scene.materials[g.material as usize];
+        let Bsdf::Diffuse(d) = &material.bsdf else {
+            bail!("material {}: only diffuse materials are exported", material.name);
+        };
+        let file = format!("meshes/{k:03}.ply");
+        write_ply(&dir.join(&file), &g.positions, &g.normals)?;
+        let _ = writeln!(xml, "  <!-- material {} -->", xml_escape(&material.name));
+        let _ = writeln!(xml, "  <shape type=\"ply\">");
+        let _ = writeln!(xml, "    <string name=\"filename\" value=\"{file}\"/>");
+        if g.normals.is_empty() {
+            let _ = writeln!(xml, "    <boolean name=\"face_normals\" value=\"true\"/>");
+        }
+        let _ = writeln!(xml, "    <bsdf type=\"twosided\"><bsdf type=\"diffuse\">");
+        let _ = writeln!(xml, "      <spectrum name=\"reflectance\" value=\"{}\"/>", spectrum_list(&d.reflectance));
+        let _ = writeln!(xml, "    </bsdf></bsdf>");
+        if let Some(le) = &g.emission {
+            let _ = writeln!(xml, "    <emitter type=\"area\">");
+            let _ = writeln!(xml, "      <spectrum name=\"radiance\" value=\"{}\"/>", spectrum_list(le));
+            let _ = writeln!(xml, "    </emitter>");
+        }
+        let _ = writeln!(xml, "  </shape>");
+    }
+    let _ = writeln!(xml, "</scene>");
+    let path = dir.join("scene.xml");
+    std::fs::write(&path, xml).with_context(|| format!("cannot write {}", path.display()))?;
+    Ok(groups.len())
+}
+
+/// `"360:v, 361:v, ..., 830:v"`: the spectrum at every integer nanometre of
+/// prism's range (a constant as its two end points).
+pub fn spectrum_list(s: &Spectrum) -> String {
+    let (lo, hi) = (LAMBDA_MIN as u32, LAMBDA_MAX as u32);
+    let lambdas: Vec<u32> = if s.is_constant() { vec![lo, hi] } else { (lo..=hi).collect() };
+    lambdas.iter().map(|&l| format!("{l}:{}", s.eval(l as f32))).collect::<Vec<_>>().join(", ")
+}
+
+fn xml_escape(s: &str) -> String {
+    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace("--", "- -")
+}
+
+/// A binary little-endian PLY triangle soup: vertices 3i, 3i+1, 3i+2 make
+/// triangle i (winding kept), with per-vertex normals if given.
+fn write_ply(path: &Path, positions: &[Vec3A], normals: &[Vec3A]) -> Result<()> {
+    let n_tris = positions.len() / 3;
+    let mut header = format!("ply\nformat binary_little_endian 1.0\nelement vertex {}\n", positions.len());
+    header += "property float x\nproperty float y\nproperty float z\n";
+    if !normals.is_empty() {
+        header += "property float nx\nproperty float ny\nproperty float nz\n";
+    }
+    header += &format!("element face {n_tris}\nproperty list uchar int vertex_indices\nend_header\n");
+    let mut bytes = header.into_bytes();
+    for (i, p) in positions.iter().enumerate() {
+        let mut floats = vec![p.x, p.y, p.z];
+        if let Some(n) = normals.get(i) {
+            floats.extend([n.x, n.y, n.z]);
+        }
+        for f in floats {
+            bytes.extend(f.to_le_bytes());
+        }
+    }
+    for t in 0..n_tris as i32 {
+        bytes.push(3);
+        for j in 0..3 {
+            bytes.extend((3 * t + j).to_le_bytes());
+        }
+    }
+    std::fs::write(path, bytes).with_context(|| format!("cannot write {}", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn spectrum_list_samples_every_nanometre() {
+        let s = Spectrum::piecewise_linear(&[(400.0, 0.0), (500.0, 1.0)]);
+        let list = spectrum_list(&s);
+        assert!(list.starts_with("360:0, 361:0,"), "{list}");
+        assert!(list.contains(", 450:0.5,"), "{list}");
+        assert!(list.ends_with(", 830:1"), "{list}");
+        assert_eq!(spectrum_list(&Spectrum::Constant(0.25)), "360:0.25, 830:0.25");
+    }
+
+    #[test]
+    fn cornell_box_exports() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.json");
+        let scene = load_scene(&path).unwrap().build();
+        let dir = std::env::temp_dir().join(format!("prism-mitsuba-export-{}", std::process::id()));
+        let meshes = export(&scene, &dir, 4).unwrap();
+        // white, red, green, and the white emitter.
+        assert_eq!(meshes, 4);
+        let xml = std::fs::read_to_string(dir.join("scene.xml")).unwrap();
+        assert_eq!(xml.matches("<emitter type=\"area\">").count(), 1);
+        assert!(xml.contains("fov_axis\" value=\"y\""));
+        let ply = std::fs::read(dir.join("meshes/000.ply")).unwrap();
+        assert!(ply.starts_with(b"ply\nformat binary_little_endian 1.0\n"));
+        let _ = std::fs::remove_dir_all(dir);
+    }
+
+    #[test]
+    fn meshes_with_and_without_normals_go_to_separate_plys() {
+        use crate::camera::Camera;
+        use crate::materials::Diffuse;
+        use crate::scene::SceneBuilder;
+        use crate::shapes::Mesh;
+        let camera = Camera::new(Vec3A::new(0.0, 0.0, -5.0), Vec3A::ZERO, Vec3A::Y, 40.0, 8, 8);
+        let mut b = SceneBuilder::new(camera);
+        let m = b.material("grey", Bsdf::Diffuse(Diffuse::new(Spectrum::Constant(0.5))));
+        b.mesh("smooth", Mesh::sphere(Vec3A::ZERO, 1.0, 1, true), m, None);
+        let quad = [Vec3A::new(-2., -1., 2.), Vec3A::new(2., -1., 2.), Vec3A::new(2., 1., 2.), Vec3A::new(-2., 1., 2.)];
+        b.mesh("flat", Mesh::quad(quad), m, Some((Spectrum::Constant(1.0), false)));
+        let dir = std::env::temp_dir().join(format!("prism-mitsuba-normals-{}", std::process::id()));
+        assert_eq!(export(&b.build(), &dir, 1).unwrap(), 2);
+        let header = |f: &str| {
+            let bytes = std::fs::read(dir.join(f)).unwrap();
+            let end = bytes.windows(10).position(|w| w == b"end_header").unwrap();
+            String::from_utf8_lossy(&bytes[..end]).into_owned()
+        };
+        assert!(header("meshes/000.ply").contains("property float nx"));
+        assert!(!header("meshes/001.ply").contains("property float nx"));
+        let xml = std::fs::read_to_string(dir.join("scene.xml")).unwrap();
+        assert_eq!(xml.matches("face_normals").count(), 1);
+        assert_eq!(xml.matches("<emitter type=\"area\">").count(), 1);
+        let _ = std::fs::remove_dir_all(dir);
+    }
+}
