@@ -18,27 +18,10 @@ use prism::sampling::Sampler;
 use prism::scene::{Scene, SceneBuilder};
 use prism::shapes::Mesh;
 use prism::spectrum::{SampledSpectrum, SampledWavelengths, Spectrum};
-use prism::stats::{render_passes, ColourStats, Image, Verdict};
-use scenes::{integrator, scene, srgb_of};
+use prism::stats::{render_passes, ColourStats, Verdict};
+use scenes::{integrator, scene, seed, srgb_of, stats, versus};
 
 const K: u32 = 16;
-
-/// Base seed `base`, shifted by 1000 x $PRISM_SEED_OFFSET (default 0): the
-/// tests use fixed seeds, and must pass for any other.
-fn seed(base: u64) -> u64 {
-    let offset: u64 = std::env::var("PRISM_SEED_OFFSET").ok().and_then(|v| v.parse().ok()).unwrap_or(0);
-    base + 1000 * offset
-}
-
-/// Block statistics (sRGB and luminance, see `prism::stats::Verdict`) of
-/// passes of a 32 x 32 image.
-fn stats(passes: &[Image], block: u32) -> ColourStats {
-    ColourStats::from_passes(passes, 32, 32, block)
-}
-
-fn versus(a: &ColourStats, b: &ColourStats) -> Verdict {
-    Verdict::versus(a, b, 1)
-}
 
 fn versus_value(a: &ColourStats, rgb: [f64; 3]) -> Verdict {
     Verdict::versus_value(a, rgb, 1)

@@ -1,10 +1,12 @@
-//! Scene loading for integration tests: the repository's scene files at a
-//! test resolution.
+//! Helpers of the integrator tests: the repository's scene files at a test
+//! resolution, integrators by name, exact colours, seeds, and the colour
+//! statistics of 32 x 32 renders.
 #![allow(dead_code)]
 
 use prism::integrators::{self, Integrator, IntegratorOptions};
 use prism::scene::{load_scene, parse_scene, Scene};
 use prism::spectrum::{spectrum_to_xyz, xyz_to_linear_srgb, Spectrum};
+use prism::stats::{ColourStats, Image, Verdict};
 use std::path::Path;
 
 /// Loads `scenes/<name>` at `width` x `height`.
@@ -34,4 +36,21 @@ pub fn integrator(name: &str) -> Box<dyn Integrator> {
 /// Linear sRGB of a spectrum's exact colour (1 nm sums).
 pub fn srgb_of(s: &Spectrum) -> [f64; 3] {
     xyz_to_linear_srgb(spectrum_to_xyz(s)).to_array().map(f64::from)
+}
+
+/// Base seed `base`, shifted by 1000 x $PRISM_SEED_OFFSET (default 0): the
+/// tests use fixed seeds, and must pass for any other.
+pub fn seed(base: u64) -> u64 {
+    let offset: u64 = std::env::var("PRISM_SEED_OFFSET").ok().and_then(|v| v.parse().ok()).unwrap_or(0);
+    base + 1000 * offset
+}
+
+/// Block statistics (sRGB and luminance, see `prism::stats::Verdict`) of
+/// passes of a 32 x 32 image.
+pub fn stats(passes: &[Image], block: u32) -> ColourStats {
+    ColourStats::from_passes(passes, 32, 32, block)
+}
+
+pub fn versus(a: &ColourStats, b: &ColourStats) -> Verdict {
+    Verdict::versus(a, b, 1)
 }
