@@ -9,21 +9,16 @@
 //! every row names a case here or a test function in tests/cli.rs, and
 //! every case here has a row.
 
+#[path = "common/scenes.rs"]
+mod scenes;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
-
-const GOOD: &str = r#"{
-  "camera": {"position": [0, 0, -3], "look_at": [0, 0, 0], "fov": 40, "width": 8, "height": 8},
-  "materials": {"white": {"type": "diffuse", "reflectance": 0.5}},
-  "objects": [{"shape": {"type": "sphere", "center": [0, 0, 0], "radius": 1}, "material": "white"}],
-  "lights": [{"type": "environment", "radiance": 1.0}]
-}
-"#;
 
 /// What a case changes: the scene text and/or the command line.
 struct Case {
     id: &'static str,
-    /// (from, to) replacements applied to GOOD, in order (`to` = TRUNCATE:
+    /// (from, to) replacements applied to scenes::TINY_SCENE, in order (`to` = TRUNCATE:
     /// the text ends where `from` starts).
     edits: &'static [(&'static str, &'static str)],
     /// Extra arguments; `{dir}` is the case's directory.
@@ -289,7 +284,7 @@ fn case_dir(id: &str) -> PathBuf {
 /// Runs one case; returns a description of what went wrong, if anything.
 fn run(case: &Case) -> Result<(), String> {
     let dir = case_dir(case.id);
-    let mut text = GOOD.to_string();
+    let mut text = scenes::TINY_SCENE.to_string();
     for (from, to) in case.edits {
         if !text.contains(from) {
             return Err(format!("edit {from:?} does not apply"));
@@ -370,7 +365,7 @@ fn every_bad_input_gives_one_clear_error_and_keeps_existing_output() {
 #[test]
 fn the_base_case_succeeds() {
     let dir = case_dir("base");
-    std::fs::write(dir.join("s.json"), GOOD).unwrap();
+    std::fs::write(dir.join("s.json"), scenes::TINY_SCENE).unwrap();
     let out = dir.join("out.exr");
     std::fs::write(&out, PREVIOUS).unwrap();
     let o = Command::new(env!("CARGO_BIN_EXE_prism"))

@@ -1,6 +1,9 @@
 //! The command line: clear errors with a non-zero exit for bad input, no
 //! output file left behind (or clobbered) on failure, and a working render.
 
+#[path = "common/scenes.rs"]
+mod scenes;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -24,18 +27,10 @@ fn write(dir: &Path, name: &str, text: &str) -> String {
     p.display().to_string()
 }
 
-const GOOD: &str = r#"{
-  "camera": {"position": [0, 0, -3], "look_at": [0, 0, 0], "fov": 40, "width": 8, "height": 8},
-  "materials": {"white": {"type": "diffuse", "reflectance": 0.5}},
-  "objects": [{"shape": {"type": "sphere", "center": [0, 0, 0], "radius": 1}, "material": "white"}],
-  "lights": [{"type": "environment", "radiance": 1.0}]
-}
-"#;
-
 #[test]
 fn renders_exr_png_and_sidecar() {
     let d = temp_dir("ok");
-    let scene = write(&d, "s.json", GOOD);
+    let scene = write(&d, "s.json", scenes::TINY_SCENE);
     let out = d.join("img.exr");
     let png = d.join("img.png");
     let o = prism(&[
@@ -62,7 +57,7 @@ fn renders_exr_png_and_sidecar() {
 #[test]
 fn unknown_integrator_lists_the_valid_ones() {
     let d = temp_dir("integrator");
-    let scene = write(&d, "s.json", GOOD);
+    let scene = write(&d, "s.json", scenes::TINY_SCENE);
     let out = d.join("x.exr");
     let o = prism(&["render", &scene, "--integrator", "magic", "--out", out.to_str().unwrap(), "--quiet"]);
     assert!(!o.status.success());
@@ -85,20 +80,24 @@ fn bad_scenes_name_file_line_and_field() {
     let cases: &[(&str, &str, &str)] = &[
         // (scene text, expected position, expected words)
         ("{\n  \"camera\": {\"position\": [0, 0, -3],,}\n}", ":2:", "camera: key must be a string"),
-        (&GOOD.replace("\"fov\": 40", "\"fov\": \"wide\""), ":2:", "camera.fov"),
+        (&scenes::TINY_SCENE.replace("\"fov\": 40", "\"fov\": \"wide\""), ":2:", "camera.fov"),
         (
-            &GOOD.replace("\"material\": \"white\"", "\"material\": \"whte\""),
+            &scenes::TINY_SCENE.replace("\"material\": \"white\"", "\"material\": \"whte\""),
             ":4:",
             "objects[0].material: unknown material \"whte\"",
         ),
         (
-            &GOOD.replace("\"reflectance\": 0.5", "\"reflectance\": \"nosuch\""),
+            &scenes::TINY_SCENE.replace("\"reflectance\": 0.5", "\"reflectance\": \"nosuch\""),
             ":3:",
             "materials.white.reflectance: unknown spectrum \"nosuch\"",
         ),
-        (&GOOD.replace("\"reflectance\": 0.5", "\"reflectanse\": 0.5"), ":3:", "unknown field `reflectanse`"),
-        (&GOOD.replace("\"radius\": 1", "\"radius\": 1e999"), ":4:", "objects[0].shape"),
-        (&GOOD.replace("\"radius\": 1", "\"radius\": -1"), ":4:", "objects[0].shape.radius"),
+        (
+            &scenes::TINY_SCENE.replace("\"reflectance\": 0.5", "\"reflectanse\": 0.5"),
+            ":3:",
+            "unknown field `reflectanse`",
+        ),
+        (&scenes::TINY_SCENE.replace("\"radius\": 1", "\"radius\": 1e999"), ":4:", "objects[0].shape"),
+        (&scenes::TINY_SCENE.replace("\"radius\": 1", "\"radius\": -1"), ":4:", "objects[0].shape.radius"),
     ];
     let d = temp_dir("bad");
     for (i, (text, pos, words)) in cases.iter().enumerate() {
@@ -122,7 +121,7 @@ fn failed_render_leaves_existing_output_untouched() {
     let o = prism(&["render", &scene, "--out", out.to_str().unwrap(), "--quiet"]);
     assert!(!o.status.success());
     assert_eq!(std::fs::read(&out).unwrap(), b"previous");
-    let o = prism(&["render", &write(&d, "s.json", GOOD), "--out", "/no/such/dir/x.exr", "--quiet"]);
+    let o = prism(&["render", &write(&d, "s.json", scenes::TINY_SCENE), "--out", "/no/such/dir/x.exr", "--quiet"]);
     assert!(!o.status.success());
     assert!(stderr(&o).contains("/no/such/dir"), "{}", stderr(&o));
 }

@@ -10,6 +10,7 @@
 //! token; the proptest adds random mutation chains. For longer runs, the
 //! cargo-fuzz target in fuzz/ (fuzz/README.md).
 
+use prism::scene::locate::{skip_string, skip_value, skip_ws};
 use prism::scene::parse_scene;
 use proptest::prelude::*;
 use std::path::{Path, PathBuf};
@@ -187,59 +188,9 @@ fn load(text: &str) -> bool {
 
 // ------------------------------------------------------------- JSON scanning
 
-fn skip_ws(b: &[u8], mut i: usize) -> usize {
-    while i < b.len() && b[i].is_ascii_whitespace() {
-        i += 1;
-    }
-    i
-}
-
-fn skip_string(b: &[u8], mut i: usize) -> Option<usize> {
-    i += 1;
-    while i < b.len() {
-        match b[i] {
-            b'\\' => i += 2,
-            b'"' => return Some(i + 1),
-            _ => i += 1,
-        }
-    }
-    None
-}
-
-/// End (exclusive) of the JSON value starting at `i`, tolerant of damage.
+/// End (exclusive) of the non-empty JSON value starting at `i`.
 fn value_end(b: &[u8], i: usize) -> Option<usize> {
-    match b.get(i)? {
-        b'"' => skip_string(b, i),
-        b'{' | b'[' => {
-            let mut depth = 0i64;
-            let mut j = i;
-            while j < b.len() {
-                match b[j] {
-                    b'"' => {
-                        j = skip_string(b, j)?;
-                        continue;
-                    }
-                    b'{' | b'[' => depth += 1,
-                    b'}' | b']' => {
-                        depth -= 1;
-                        if depth == 0 {
-                            return Some(j + 1);
-                        }
-                    }
-                    _ => {}
-                }
-                j += 1;
-            }
-            None
-        }
-        _ => {
-            let mut j = i;
-            while j < b.len() && !matches!(b[j], b',' | b'}' | b']') && !b[j].is_ascii_whitespace() {
-                j += 1;
-            }
-            (j > i).then_some(j)
-        }
-    }
+    skip_value(b, i).filter(|&j| j > i)
 }
 
 /// (key start, value start, value end) of every `"key": value` member.

@@ -48,7 +48,8 @@ fn line_col(text: &str, pos: usize) -> (usize, usize) {
     (line, col)
 }
 
-fn skip_ws(b: &[u8], mut i: usize) -> usize {
+/// The first index at or after `i` that is not JSON whitespace.
+pub fn skip_ws(b: &[u8], mut i: usize) -> usize {
     while i < b.len() && b[i].is_ascii_whitespace() {
         i += 1;
     }
@@ -90,7 +91,8 @@ fn find_child(b: &[u8], pos: usize, seg: &Seg) -> Option<usize> {
     }
 }
 
-fn skip_string(b: &[u8], mut i: usize) -> Option<usize> {
+/// End (exclusive) of the JSON string whose opening quote is at `i`.
+pub fn skip_string(b: &[u8], mut i: usize) -> Option<usize> {
     i += 1;
     while i < b.len() {
         match b[i] {
@@ -102,7 +104,9 @@ fn skip_string(b: &[u8], mut i: usize) -> Option<usize> {
     None
 }
 
-fn skip_value(b: &[u8], i: usize) -> Option<usize> {
+/// End (exclusive) of the JSON value starting at `i` (a scalar ends at a
+/// separator or whitespace; may be empty); None if it runs off the text.
+pub fn skip_value(b: &[u8], i: usize) -> Option<usize> {
     match b.get(i)? {
         b'"' => skip_string(b, i),
         b'{' | b'[' => {

@@ -4,7 +4,7 @@
 
 mod gltf;
 mod json;
-mod locate;
+pub mod locate;
 
 pub use self::gltf::{gltf_conductor_eta_k, load_gltf, parse_gltf, GltfScene};
 pub use json::{load_scene, parse_scene, LoadError};

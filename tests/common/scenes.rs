@@ -54,3 +54,13 @@ pub fn stats(passes: &[Image], block: u32) -> ColourStats {
 pub fn versus(a: &ColourStats, b: &ColourStats) -> Verdict {
     Verdict::versus(a, b, 1)
 }
+
+/// A valid scene of a few lines (an 8 x 8 image of a sphere under a constant
+/// sky) for the command-line and bad-input tests, which edit it.
+pub const TINY_SCENE: &str = r#"{
+  "camera": {"position": [0, 0, -3], "look_at": [0, 0, 0], "fov": 40, "width": 8, "height": 8},
+  "materials": {"white": {"type": "diffuse", "reflectance": 0.5}},
+  "objects": [{"shape": {"type": "sphere", "center": [0, 0, 0], "radius": 1}, "material": "white"}],
+  "lights": [{"type": "environment", "radiance": 1.0}]
+}
+"#;
