@@ -30,23 +30,14 @@ static CMF: LazyLock<Vec<[f32; 3]>> = LazyLock::new(|| {
     rows
 });
 
-#[inline]
-fn cmf_at(lambda: f32) -> Vec3 {
-    match super::dense_index(lambda) {
-        Some(i) => Vec3::from_array(CMF[i]),
-        None => Vec3::ZERO,
-    }
-}
-
 /// Monte Carlo estimate of XYZ from radiance at the sampled wavelengths:
 /// the average over lanes of cmf(l_i) L_i / p(l_i), divided by the integral of
 /// ybar; lanes with pdf 0 (terminated secondaries) contribute nothing.
 #[inline]
 pub fn to_xyz(l: SampledSpectrum, lambda: &SampledWavelengths) -> Vec3 {
     let w = l.safe_div(SampledSpectrum(lambda.pdf)).0 / (4.0 * CIE_Y_INTEGRAL);
-    let lam = lambda.lambda.to_array();
-    let (x, y, z) = (cmf_at(lam[0]), cmf_at(lam[1]), cmf_at(lam[2]));
-    let zz = cmf_at(lam[3]);
+    let cmf = |i: u32| CMF.get(i as usize).map_or(Vec3::ZERO, |c| Vec3::from_array(*c));
+    let [x, y, z, zz] = super::dense_index4(lambda.lambda).map(cmf);
     let xs = Vec4::new(x.x, y.x, z.x, zz.x).dot(w);
     let ys = Vec4::new(x.y, y.y, z.y, zz.y).dot(w);
     let zs = Vec4::new(x.z, y.z, z.z, zz.z).dot(w);

@@ -21,6 +21,7 @@ pub use rgb::sigmoid_polynomial;
 pub use rgb::{rgb_albedo, rgb_illuminant, RgbToSpectrumTable};
 pub use sampled::{SampledSpectrum, SampledWavelengths, N_LAMBDA};
 
+use glam::Vec4;
 use std::sync::Arc;
 
 /// Number of 1 nm samples in [LAMBDA_MIN, LAMBDA_MAX].
@@ -84,9 +85,13 @@ impl Spectrum {
     pub fn sample(&self, lambda: &SampledWavelengths) -> SampledSpectrum {
         match self {
             Spectrum::Constant(c) => SampledSpectrum::splat(*c),
-            Spectrum::Dense(_) => {
-                let l = lambda.lambda.to_array();
-                SampledSpectrum::new(self.eval(l[0]), self.eval(l[1]), self.eval(l[2]), self.eval(l[3]))
+            Spectrum::Dense(t) => {
+                let i = dense_index4(lambda.lambda);
+                if i.iter().all(|&i| (i as usize) < N_DENSE) {
+                    SampledSpectrum::new(t[i[0] as usize], t[i[1] as usize], t[i[2] as usize], t[i[3] as usize])
+                } else {
+                    SampledSpectrum(lambda.lambda.map(|l| self.eval(l)))
+                }
             }
         }
     }
@@ -132,11 +137,22 @@ impl Spectrum {
 }
 
 /// Index of the nearest integer wavelength in the dense tables, if in range.
-/// floor(x + 0.5) equals round(x) for x >= 0 and avoids a libm call.
 #[inline]
-pub(crate) fn dense_index(lambda: f32) -> Option<usize> {
-    let x = lambda - LAMBDA_MIN + 0.5;
-    (x >= 0.0 && x < N_DENSE as f32).then_some(x as usize)
+fn dense_index(lambda: f32) -> Option<usize> {
+    let i = dense_index4(Vec4::splat(lambda))[0] as usize;
+    (i < N_DENSE).then_some(i)
+}
+
+/// `dense_index` of four wavelengths at once, as u32 that are >= N_DENSE
+/// when out of range (or NaN). Adding 2^23 to a float in [0, 2^22) rounds it
+/// to the nearest integer (ties to even) and leaves that integer in the low
+/// mantissa bits; the offset of one more nm makes wavelengths just below
+/// 360 nm (index -1 + 1 = 0 after rounding) map to 360 nm, and anything
+/// below 359.5 nm wrap to a huge index.
+#[inline]
+pub(crate) fn dense_index4(lambda: Vec4) -> [u32; 4] {
+    let r = (lambda - Vec4::splat(LAMBDA_MIN - 1.0)) + Vec4::splat(8_388_608.0);
+    r.to_array().map(|x| x.to_bits().wrapping_sub(0x4b00_0001))
 }
 
 fn piecewise_linear_at(points: &[(f32, f32)], lambda: f32) -> f32 {
@@ -157,6 +173,21 @@ fn piecewise_linear_at(points: &[(f32, f32)], lambda: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn dense_index_rounds_to_the_nearest_nm_inside_the_range() {
+        assert_eq!(dense_index(360.0), Some(0));
+        assert_eq!(dense_index(359.6), Some(0));
+        assert_eq!(dense_index(359.4), None);
+        assert_eq!(dense_index(360.4), Some(0));
+        assert_eq!(dense_index(360.6), Some(1));
+        assert_eq!(dense_index(538.2), Some(178));
+        assert_eq!(dense_index(830.4), Some(N_DENSE - 1));
+        assert_eq!(dense_index(830.6), None);
+        for l in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -1e30, 1e30, 0.0, -360.0] {
+            assert_eq!(dense_index(l), None, "{l}");
+        }
+    }
 
     #[test]
     fn piecewise_linear_interpolates_and_clamps() {

@@ -130,18 +130,19 @@ pub struct SampledWavelengths {
 }
 
 impl SampledWavelengths {
+    /// The four wavelengths for primary sample `u`, all lanes at once. With
+    /// x = 0.8569106 - 1.827502 u', the inverse CDF is
+    /// l = 538 - atanh(x) / 0.0072, so 0.0072 (l - 538) = -atanh(x) and, as
+    /// cosh^2(atanh x) = 1 / (1 - x^2), the pdf at l is 0.0039398042 (1 - x^2):
+    /// one vector logarithm and no hyperbolic cosine.
     pub fn sample_visible(u: f32) -> Self {
-        let mut lambda = [0.0; 4];
-        let mut pdf = [0.0; 4];
-        for i in 0..N_LAMBDA {
-            let mut up = u + i as f32 / N_LAMBDA as f32;
-            if up > 1.0 {
-                up -= 1.0;
-            }
-            lambda[i] = sample_visible_wavelength(up);
-            pdf[i] = visible_wavelength_pdf(lambda[i]);
-        }
-        Self { lambda: Vec4::from_array(lambda), pdf: Vec4::from_array(pdf) }
+        let up = Vec4::splat(u) + Vec4::new(0.0, 0.25, 0.5, 0.75);
+        let up = Vec4::select(up.cmpgt(Vec4::ONE), up - Vec4::ONE, up);
+        let x = Vec4::splat(0.856_910_6) - Vec4::splat(1.827_502) * up;
+        let atanh = 0.5 * ln(((Vec4::ONE + x) / (Vec4::ONE - x)).max(Vec4::splat(f32::MIN_POSITIVE)));
+        let lambda = Vec4::splat(538.0) - Vec4::splat(138.888_89) * atanh;
+        let pdf = Vec4::splat(0.003_939_804) * (Vec4::ONE - x * x);
+        Self { lambda, pdf }
     }
 
     /// Keep only the hero wavelength (after a dispersive event): the
@@ -167,24 +168,51 @@ impl SampledWavelengths {
     }
 }
 
-/// Inverse CDF of pbrt-v4's visible-wavelength pdf (util/sampling.h).
+/// Natural logarithm of four positive normal floats, after Cephes' `logf`
+/// (Moshier 1992): x = m 2^e with m in [sqrt(1/2), sqrt(2)), then a degree-9
+/// polynomial in f = m - 1; about 1 ulp.
 #[inline]
-pub fn sample_visible_wavelength(u: f32) -> f32 {
-    538.0 - 138.888_89 * (0.856_910_6 - 1.827_502 * u).atanh()
-}
-
-#[inline]
-pub fn visible_wavelength_pdf(lambda: f32) -> f32 {
-    if !(360.0..=830.0).contains(&lambda) {
-        return 0.0;
-    }
-    let c = (0.0072 * (lambda - 538.0)).cosh();
-    0.003_939_804 / (c * c)
+fn ln(v: Vec4) -> Vec4 {
+    let bits = v.to_array().map(f32::to_bits);
+    // m in [0.5, 1) and the matching exponent, as frexp returns them.
+    let m = Vec4::from_array(bits.map(|b| f32::from_bits((b & 0x807f_ffff) | 0x3f00_0000)));
+    let e = Vec4::from_array(bits.map(|b| ((b >> 23) & 0xff) as i32 as f32 - 126.0));
+    let small = m.cmplt(Vec4::splat(std::f32::consts::FRAC_1_SQRT_2));
+    let e = Vec4::select(small, e - Vec4::ONE, e);
+    let f = Vec4::select(small, m + m, m) - Vec4::ONE;
+    let z = f * f;
+    let p = [
+        -1.151_461_031e-1,
+        1.167_699_874e-1,
+        -1.242_014_084_6e-1,
+        1.424_932_278_7e-1,
+        -1.666_805_766_5e-1,
+        2.000_071_476_5e-1,
+        -2.499_999_399_3e-1,
+        3.333_333_117_4e-1,
+    ]
+    .iter()
+    .fold(Vec4::splat(7.037_683_629_2e-2), |acc, &c| acc * f + Vec4::splat(c));
+    let y = p * f * z - Vec4::splat(2.121_944_4e-4) * e - 0.5 * z;
+    f + y + Vec4::splat(0.693_359_375) * e
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Inverse CDF of pbrt-v4's visible-wavelength pdf (util/sampling.h).
+    fn sample_visible_wavelength(u: f32) -> f32 {
+        538.0 - 138.888_89 * (0.856_910_6 - 1.827_502 * u).atanh()
+    }
+
+    fn visible_wavelength_pdf(lambda: f32) -> f32 {
+        if !(360.0..=830.0).contains(&lambda) {
+            return 0.0;
+        }
+        let c = (0.0072 * (lambda - 538.0)).cosh();
+        0.003_939_804 / (c * c)
+    }
 
     #[test]
     fn visible_pdf_integrates_to_one() {
@@ -193,6 +221,32 @@ mod tests {
         let s: f64 =
             (0..n).map(|i| visible_wavelength_pdf(360.0 + (i as f64 + 0.5) as f32 * h as f32) as f64 * h).sum();
         assert!((s - 1.0).abs() < 1e-3, "{s}");
+    }
+
+    #[test]
+    fn vector_sampling_matches_the_scalar_inverse_cdf_and_pdf() {
+        for k in 0..=1000 {
+            let l = SampledWavelengths::sample_visible(k as f32 / 1000.0);
+            for i in 0..N_LAMBDA {
+                let (lambda, pdf) = (l.lambda[i], l.pdf[i]);
+                let mut up = k as f32 / 1000.0 + i as f32 / 4.0;
+                if up > 1.0 {
+                    up -= 1.0;
+                }
+                assert!((lambda - sample_visible_wavelength(up)).abs() < 1e-3, "{lambda} at {up}");
+                let p = visible_wavelength_pdf(lambda.clamp(360.0, 830.0));
+                assert!((pdf - p).abs() < 1e-5 * p, "{pdf} vs {p} at {lambda}");
+            }
+        }
+    }
+
+    #[test]
+    fn ln_is_accurate() {
+        for k in 0..10_000 {
+            let x = 0.03 + k as f32 * 0.01;
+            let l = ln(Vec4::splat(x)).x;
+            assert!((l - x.ln()).abs() <= 2.0 * f32::EPSILON * x.ln().abs().max(1.0), "{x}: {l} vs {}", x.ln());
+        }
     }
 
     #[test]
