@@ -276,7 +276,7 @@ impl PreparedRay {
     /// on the edge cannot miss both.
     #[inline(always)]
     fn intersect(&self, tri: &SoaTriangle, t_max: f32) -> Option<(f32, f32, f32)> {
-                let [kx, ky, kz] = self.k;
+        let [kx, ky, kz] = self.k;
         let [sx, sy, sz] = self.s;
         // Lanes (a, b, c): the vertices relative to o, then sheared.
         let z = tri.row(kz) - Vec3A::splat(self.o_k[2]);
@@ -354,7 +354,7 @@ const SLACK: f32 = 1.0 / (1u32 << 20) as f32;
 /// t_near is clamped at 0 (not obvhs's 1e-4), t_far at the current t_max.
 #[inline(always)]
 fn intersect_node(node: &CwBvhNode, r: &PreparedRay, t_max: f32, oct_inv4: u32) -> u32 {
-        let e = node.compute_extent();
+    let e = node.compute_extent();
     let diff = Vec3A::from(node.p) - r.o;
     let base = diff * r.inv;
     let slack = (diff.abs() + e * 256.0) * r.abs_inv * SLACK;
