@@ -241,16 +241,10 @@ impl PreparedRay {
         if !(ray.o.is_finite() && d.is_finite() && d.length_squared() > 0.0) {
             return None;
         }
+        // kz: the first axis of largest |d|; (kx, ky) the next two cyclically.
         let ad = d.abs();
-        let kz = if ad.x >= ad.y && ad.x >= ad.z {
-            0
-        } else if ad.y >= ad.z {
-            1
-        } else {
-            2
-        };
-        let mut kx = (kz + 1) % 3;
-        let mut ky = (kx + 1) % 3;
+        let kz = ad.cmpeq(Vec3A::splat(ad.max_element())).bitmask().trailing_zeros() as usize;
+        let (mut kx, mut ky) = ([1, 2, 0][kz], [2, 0, 1][kz]);
         if d[kz] < 0.0 {
             std::mem::swap(&mut kx, &mut ky);
         }
