@@ -24,8 +24,7 @@
 //! never be hit, and a renderer could not compute their normal anyway.
 
 use crate::geometry::{gamma, Ray};
-// `UVec2` is named unqualified inside obvhs's `traverse!`.
-use glam::{DVec3, UVec2, Vec3A, Vec3Swizzles, Vec4};
+use glam::{DVec3, Vec3A, Vec3Swizzles, Vec4};
 use obvhs::{
     aabb::Aabb,
     bvh2::reinsertion::ReinsertionOptimizer,
@@ -120,44 +119,111 @@ impl Accel {
 
     /// Closest hit with t in (0, t_max).
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<TriangleHit> {
-        if self.tris.is_empty() {
-            return None;
-        }
         let pre = PreparedRay::new(ray)?;
         let mut best_t = t_max;
         let mut best: Option<(u32, f32, f32)> = None;
-        let mut state = self.bvh.new_traversal(ray.d);
-        let mut node: &CwBvhNode;
-        obvhs::traverse!(self.bvh, node, state, intersect_node(node, &pre, best_t, state.oct_inv4), {
-            let slot = state.primitive_id;
-            if let Some((t, b1, b2)) = pre.intersect(&self.tris[slot as usize], best_t) {
-                best_t = t;
+        self.traverse(&pre, &mut best_t, |slot, best_t| {
+            if let Some((t, b1, b2)) = pre.intersect(&self.tris[slot as usize], *best_t) {
+                *best_t = t;
                 best = Some((slot, b1, b2));
             }
+            false
         });
         best.map(|(slot, b1, b2)| TriangleHit { t: best_t, prim: self.bvh.primitive_indices[slot as usize], b1, b2 })
     }
 
     /// Whether anything blocks the ray in (0, t_max); stops at the first hit.
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
-        if self.tris.is_empty() {
-            return false;
-        }
         let Some(pre) = PreparedRay::new(ray) else {
             return false;
         };
-        let mut state = self.bvh.new_traversal(ray.d);
-        let mut node: &CwBvhNode;
+        let mut t_max = t_max;
         let mut hit = false;
-        'traversal: {
-            obvhs::traverse!(self.bvh, node, state, intersect_node(node, &pre, t_max, state.oct_inv4), {
-                if pre.intersect(&self.tris[state.primitive_id as usize], t_max).is_some() {
-                    hit = true;
-                    break 'traversal;
-                }
-            });
-        }
+        self.traverse(&pre, &mut t_max, |slot, t_max| {
+            hit = pre.intersect(&self.tris[slot as usize], *t_max).is_some();
+            hit
+        });
         hit
+    }
+
+    /// Ylitie, Karras & Laine 2017, algorithm 1, on the CPU: visits the
+    /// nodes whose boxes the ray enters before `t_max`, inner children in
+    /// the order of the ray's octant, and hands every triangle slot of a
+    /// visited leaf to `leaf`, which may shorten `t_max` and returns true to
+    /// stop. A group is a base index and a hit mask: for nodes, inner
+    /// children's bits (top byte, by traversal priority) over the node's
+    /// `imask`; for triangles, one bit per slot.
+    #[inline(always)]
+    fn traverse(&self, r: &PreparedRay, t_max: &mut f32, mut leaf: impl FnMut(u32, &mut f32) -> bool) {
+        if self.bvh.nodes.is_empty() {
+            return;
+        }
+        let oct_inv4 =
+            (!r.neg[0] as u32 * 0x0404_0404) | (!r.neg[1] as u32 * 0x0202_0202) | (!r.neg[2] as u32 * 0x0101_0101);
+        let mut stack = GroupStack::default();
+        // The root as the only inner child of a virtual parent.
+        let mut nodes = (0u32, 0x8000_0000u32);
+        loop {
+            let mut tris = (0u32, 0u32);
+            if nodes.1 & 0xff00_0000 != 0 {
+                let hits = nodes.1;
+                let bit = 31 - hits.leading_zeros();
+                nodes.1 &= !(1 << bit);
+                if nodes.1 & 0xff00_0000 != 0 {
+                    stack.push(nodes);
+                }
+                let slot = (bit - 24) ^ (oct_inv4 & 0xff);
+                let child = nodes.0 + (hits & !(u32::MAX << slot)).count_ones();
+                let node = &self.bvh.nodes[child as usize];
+                let hit_mask = intersect_node(node, r, *t_max, oct_inv4);
+                nodes = (node.child_base_idx, (hit_mask & 0xff00_0000) | node.imask as u32);
+                tris = (node.primitive_base_idx, hit_mask & 0x00ff_ffff);
+            }
+            while tris.1 != 0 {
+                let i = 31 - tris.1.leading_zeros();
+                tris.1 &= !(1 << i);
+                if leaf(tris.0 + i, t_max) {
+                    return;
+                }
+            }
+            if nodes.1 & 0xff00_0000 == 0 {
+                match stack.pop() {
+                    Some(g) => nodes = g,
+                    None => return,
+                }
+            }
+        }
+    }
+}
+
+/// The traversal stack: node groups still to visit. Wide BVHs are shallow,
+/// so 32 entries in place suffice for all but pathological trees, which
+/// spill to the heap instead of losing nodes.
+#[derive(Default)]
+struct GroupStack {
+    inline: [(u32, u32); 32],
+    len: usize,
+    spill: Vec<(u32, u32)>,
+}
+
+impl GroupStack {
+    #[inline(always)]
+    fn push(&mut self, g: (u32, u32)) {
+        if self.len < self.inline.len() {
+            self.inline[self.len] = g;
+            self.len += 1;
+        } else {
+            self.spill.push(g);
+        }
+    }
+
+    #[inline(always)]
+    fn pop(&mut self) -> Option<(u32, u32)> {
+        if let Some(g) = self.spill.pop() {
+            return Some(g);
+        }
+        self.len = self.len.checked_sub(1)?;
+        Some(self.inline[self.len])
     }
 }
 
@@ -434,6 +500,18 @@ mod tests {
             Vec3A::new(0.0, 1.0, 0.0),
         ];
         vec![[c[0], c[1], c[2]], [c[0], c[2], c[3]]]
+    }
+
+    #[test]
+    fn group_stack_spills_to_the_heap_in_lifo_order() {
+        let mut s = GroupStack::default();
+        for i in 0..40 {
+            s.push((i, i + 1));
+        }
+        for i in (0..40).rev() {
+            assert_eq!(s.pop(), Some((i, i + 1)));
+        }
+        assert_eq!(s.pop(), None);
     }
 
     #[test]
