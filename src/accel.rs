@@ -425,12 +425,8 @@ fn intersect_node(node: &CwBvhNode, r: &PreparedRay, t_max: f32, oct_inv4: u32) 
 
     #[inline(always)]
     fn slab(lo: &[u8; 8], hi: &[u8; 8], neg: bool) -> ([Vec4; 2], [Vec4; 2]) {
-        let (l, h) = (decode8(lo), decode8(hi));
-        if neg {
-            (h, l)
-        } else {
-            (l, h)
-        }
+        let (near, far) = if neg { (hi, lo) } else { (lo, hi) };
+        (decode8(near), decode8(far))
     }
     let (near_x, far_x) = slab(&node.child_min_x, &node.child_max_x, r.neg[0]);
     let (near_y, far_y) = slab(&node.child_min_y, &node.child_max_y, r.neg[1]);
