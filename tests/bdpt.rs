@@ -310,7 +310,8 @@ fn pbrt_mis_weight(
         };
         r *= remap0_f32(rev) / remap0_f32(v.pdf_fwd);
         let delta = (i != t - 1 && v.delta) || camera[i - 1].delta;
-        if !delta && !(i == 1 && v.is_infinite()) {
+        let pinhole_sees_infinity = i == 1 && v.is_infinite();
+        if !delta && !pinhole_sees_infinity {
             sum += heuristic.term(r);
         }
     }

@@ -30,12 +30,10 @@ static CMF: LazyLock<Vec<[f32; 3]>> = LazyLock::new(|| {
     rows
 });
 
+/// The colour-matching functions at dense-table index `i` (zero outside).
 #[inline]
-fn cmf_at(lambda: f32) -> Vec3 {
-    match super::dense_index(lambda) {
-        Some(i) => Vec3::from_array(CMF[i]),
-        None => Vec3::ZERO,
-    }
+fn cmf_at(i: u32) -> Vec3 {
+    CMF.get(i as usize).map_or(Vec3::ZERO, |&c| Vec3::from_array(c))
 }
 
 /// Monte Carlo estimate of XYZ from radiance at the sampled wavelengths:
@@ -44,9 +42,9 @@ fn cmf_at(lambda: f32) -> Vec3 {
 #[inline]
 pub fn to_xyz(l: SampledSpectrum, lambda: &SampledWavelengths) -> Vec3 {
     let w = l.safe_div(SampledSpectrum(lambda.pdf)).0 / (4.0 * CIE_Y_INTEGRAL);
-    let lam = lambda.lambda.to_array();
-    let (x, y, z) = (cmf_at(lam[0]), cmf_at(lam[1]), cmf_at(lam[2]));
-    let zz = cmf_at(lam[3]);
+    let [a, b, c, d] = lambda.dense;
+    let (x, y, z) = (cmf_at(a), cmf_at(b), cmf_at(c));
+    let zz = cmf_at(d);
     let xs = Vec4::new(x.x, y.x, z.x, zz.x).dot(w);
     let ys = Vec4::new(x.y, y.y, z.y, zz.y).dot(w);
     let zs = Vec4::new(x.z, y.z, z.z, zz.z).dot(w);

@@ -84,9 +84,10 @@ impl Spectrum {
     pub fn sample(&self, lambda: &SampledWavelengths) -> SampledSpectrum {
         match self {
             Spectrum::Constant(c) => SampledSpectrum::splat(*c),
-            Spectrum::Dense(_) => {
-                let l = lambda.lambda.to_array();
-                SampledSpectrum::new(self.eval(l[0]), self.eval(l[1]), self.eval(l[2]), self.eval(l[3]))
+            Spectrum::Dense(t) => {
+                let at = |i: u32| t.get(i as usize).copied().unwrap_or(0.0);
+                let [a, b, c, d] = lambda.dense;
+                SampledSpectrum::new(at(a), at(b), at(c), at(d))
             }
         }
     }

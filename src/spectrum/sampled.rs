@@ -127,6 +127,10 @@ impl Mul<SampledSpectrum> for f32 {
 pub struct SampledWavelengths {
     pub lambda: Vec4,
     pub pdf: Vec4,
+    /// Each wavelength's index in the 1 nm tables of dense spectra
+    /// (`dense_index`; `u32::MAX` outside them), found once per path instead
+    /// of at every `Spectrum::sample`.
+    pub(super) dense: [u32; 4],
 }
 
 impl SampledWavelengths {
@@ -141,7 +145,8 @@ impl SampledWavelengths {
             lambda[i] = sample_visible_wavelength(up);
             pdf[i] = visible_wavelength_pdf(lambda[i]);
         }
-        Self { lambda: Vec4::from_array(lambda), pdf: Vec4::from_array(pdf) }
+        let dense = lambda.map(|l| super::dense_index(l).map_or(u32::MAX, |i| i as u32));
+        Self { lambda: Vec4::from_array(lambda), pdf: Vec4::from_array(pdf), dense }
     }
 
     /// Keep only the hero wavelength (after a dispersive event): the
