@@ -1,8 +1,9 @@
 //! Proofs for `bdpt` (integrators/bdpt.rs): white rooms (diffuse, and
 //! with mirrors; the furnaces of every integrator are in tests/furnace.rs), agreement with `path` and `light` on
 //! the Cornell box for every MIS heuristic, MIS weights that sum to one over
-//! the strategies of a path (checked against Veach's formula on random paths
-//! in random scenes, with delta vertices, point lights and the environment),
+//! the strategies of a path (checked against Veach's formula and pbrt's
+//! non-recursive weight on random paths in random scenes, with delta
+//! vertices, point lights and the environment),
 //! per-strategy images that add up to the image, and determinism.
 //! Statistics follow VALIDATION.md §1; each test has a negative control.
 //!
