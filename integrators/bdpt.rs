@@ -193,8 +193,11 @@ fn connect(
             return None;
         }
         let g = qs.segment_to(pt)?;
-        let sq = qs.scatter(scene, g.w, lambda, TransportMode::Importance);
         let sp = pt.scatter(scene, -g.w, lambda, TransportMode::Radiance);
+        if sp.f.is_black() {
+            return None;
+        }
+        let sq = qs.scatter(scene, g.w, lambda, TransportMode::Importance);
         let geometry = qs.si.frame.n.dot(g.w).abs() * pt.si.frame.n.dot(g.w).abs() * g.inv_d2;
         let l = qs.beta * sq.f * sp.f * pt.beta * geometry;
         if l.is_black() || !scene.unoccluded(qs.si.point(), pt.si.point()) {
@@ -256,8 +259,9 @@ fn ratio(h: MisHeuristic, rev: f32, fwd: f32) -> f32 {
 /// al.'s dVCM and dVC (tech. rep. eqs. (31)-(36), merging off) multiplied by
 /// h(pdf_fwd(v)) (dVC also by h(pdf_fwd(v_{m-1})) and the conversion of
 /// rev_{m-1} to area measure), i.e. written with pbrt's ratios: quantities
-/// of order one, where the raw ones scale like 1 / (area density)^2 and
-/// leave the f32 range in scenes measured in millimetres.
+/// of the order of the number of strategies, where the raw ones carry the
+/// scene's scale (a squared distance per segment, squared again by the
+/// power heuristic) and can leave the f32 range in large scenes.
 pub fn init_mis(scene: &Scene, path: &mut [Vertex], subpath: Subpath, h: MisHeuristic) {
     for m in 0..path.len() {
         let d_vcm = match (subpath, m) {
@@ -288,17 +292,17 @@ pub fn init_mis(scene: &Scene, path: &mut [Vertex], subpath: Subpath, h: MisHeur
 /// their predecessors being made by the other subpath's walk. pbrt-v3
 /// `MISWeight` substitutes them with scoped assignments.
 #[derive(Clone, Copy, Debug, Default)]
-pub struct Reverse {
-    pub pt: f32,
-    pub pt_minus: f32,
-    pub qs: f32,
-    pub qs_minus: f32,
+struct Reverse {
+    pt: f32,
+    pt_minus: f32,
+    qs: f32,
+    qs_minus: f32,
 }
 
 impl Reverse {
     /// s = 0: the camera subpath ends on an emitter pt, which a light
     /// subpath would have started from (pbrt `PdfLightOrigin`, `PdfLight`).
-    pub fn emitter(scene: &Scene, pt: &Vertex, pt_minus: &Vertex) -> Self {
+    fn emitter(scene: &Scene, pt: &Vertex, pt_minus: &Vertex) -> Self {
         Self { pt: pt.pdf_light_origin(scene, pt_minus), pt_minus: pt.pdf_light(scene, pt_minus), ..Self::default() }
     }
 
@@ -307,7 +311,7 @@ impl Reverse {
     /// `ConnectVertices`: cameraBsdfDirPdfA, lightBsdfRevPdfW, ...). The
     /// densities of leaving a connection vertex towards its predecessor are
     /// converted with the factor its walk stored (`Vertex::g_rev`).
-    pub fn connection(qs: &Vertex, sq: &Scatter, pt: &Vertex, sp: &Scatter, g: &Segment) -> Self {
+    fn connection(qs: &Vertex, sq: &Scatter, pt: &Vertex, sp: &Scatter, g: &Segment) -> Self {
         Self {
             pt: sq.pdf_fwd * g.to_next,
             pt_minus: sp.pdf_rev * pt.g_rev,
