@@ -12,17 +12,27 @@
 //! | (1, 1)   | the light's own point (y_0) seen by the pinhole: with it a point light in view is visible, and directly seen area lights get a second strategy (pbrt-v3 skips it and gives (0, 2) weight 1) |
 //! | others   | y_{s-1} joined to z_{t-1} by a shadow ray, with G = |cos||cos| / d^2 (shading normals) |
 //!
-//! Each contribution is weighted by MIS (Veach §10.3) computed with the
-//! ratio recursion of pbrt-v3 `MISWeight`: the densities p_i of the other
-//! strategies that could make the same path are obtained relative to the
-//! current one by multiplying ratios pdf_rev / pdf_fwd of area densities
-//! vertex by vertex, with remap0 (a delta density, stored as 0, becomes 1 so
-//! it cancels) and strategies that would have to connect through a specular
-//! vertex, or hit a point light, left out (TRANSPORT-NOTES §6b, §6g). The
-//! densities at and next to the connection are the only ones not known from
-//! the walks; they are computed for the connection and substituted.
-//! Roulette is not in these densities (src/path.rs explains why that is
-//! still unbiased).
+//! Each contribution is weighted by MIS (Veach §10.3) with the densities of
+//! pbrt-v3 `MISWeight`: the densities p_i of the other strategies that could
+//! make the same path relative to the current one are products of ratios
+//! pdf_rev / pdf_fwd of area densities vertex by vertex, with remap0 (a delta
+//! density, stored as 0, becomes 1 so it cancels) and strategies that would
+//! have to connect through a specular vertex, or hit a point light, left out
+//! (TRANSPORT-NOTES §6b, §6g). pbrt walks both subpaths for every (s, t);
+//! here the sums are built recursively along each subpath once per sample
+//! (Georgiev, Krivanek, Davidovic, Slusallek 2012, "Light transport
+//! simulation with vertex connection and merging", and its technical report
+//! "Implementing vertex connection and merging", eqs. (31)-(36): SmallVCM's
+//! dVCM and dVC), so a strategy's weight costs O(1) plus the four reverse
+//! densities at and next to the connection, which come out of the same BSDF
+//! evaluations as its contribution (`Vertex::scatter`). See `init_mis` for
+//! the quantities. Those evaluations take a connection vertex's `wo` as the
+//! direction its walk arrived along, as its f always did and as the walk's
+//! own stored densities do; pbrt recomputes it from the vertex positions,
+//! which differ from it by the ray-origin offset (tests/bdpt.rs measures
+//! the effect on the weights: above 1e-3 relative for ~1 strategy in 20,000,
+//! on peaked lobes). Roulette is not in these densities (src/path.rs explains
+//! why that is still unbiased).
 //!
 //! `--strategies DIR` (src/render.rs `render_with_strategies`) records each
 //! strategy's weighted and unweighted contribution for per-(s, t) images
@@ -35,7 +45,9 @@
 
 use super::{Integrator, IntegratorOptions, MisHeuristic};
 use crate::materials::TransportMode;
-use crate::path::{camera_subpath, connect_to_camera, light_subpath, specular_chains_to_point_lights, Vertex};
+use crate::path::{
+    camera_subpath, connect_to_camera, light_subpath, specular_chains_to_point_lights, Scatter, Segment, Vertex,
+};
 use crate::render::{Splat, StrategyRecord, Workspace};
 use crate::sampling::Sampler;
 use crate::scene::Scene;
@@ -66,6 +78,8 @@ impl Integrator for Bdpt {
         let Workspace { splats, paths, strategies } = ws;
         camera_subpath(scene, raster, sampler, lambda, self.max_depth, &mut paths.camera);
         light_subpath(scene, sampler, lambda, self.max_depth, &mut paths.light);
+        init_mis(scene, &mut paths.camera, Subpath::Camera, self.mis);
+        init_mis(scene, &mut paths.light, Subpath::Light, self.mis);
         let (camera, light, lambda) = (&paths.camera[..], &paths.light[..], &*lambda);
         let mut l = SampledSpectrum::ZERO;
         for t in 1..=camera.len() {
@@ -73,10 +87,10 @@ impl Integrator for Bdpt {
                 if s + t < 2 || s + t - 2 > self.max_depth as usize {
                     continue;
                 }
-                let Some(c) = connect(scene, light, camera, s, t, sampler, lambda) else {
+                let Some(c) = connect(scene, light, camera, s, t, self.mis, sampler, lambda) else {
                     continue;
                 };
-                let w = mis_weight(scene, light, camera, c.sampled.as_ref(), s, t, self.mis, lambda);
+                let w = c.ends.weight(&c.rev, self.mis);
                 let weighted = c.l * w;
                 match c.splat {
                     Some(raster) => splats.push(Splat { raster, l: weighted }),
@@ -97,22 +111,24 @@ impl Integrator for Bdpt {
 }
 
 /// An unweighted connection: its contribution, the raster position for a
-/// t = 1 splat, and the endpoint vertex sampled for it (s = 1: the light
-/// sample; t = 1: the camera), which MIS uses in place of the subpath's.
+/// t = 1 splat, and what its MIS weight needs.
 struct Connection {
     l: SampledSpectrum,
     splat: Option<Vec2>,
-    sampled: Option<Vertex>,
+    ends: Ends,
+    rev: Reverse,
 }
 
 /// The unweighted contribution of strategy (s, t) (pbrt-v3 `ConnectBDPT`),
 /// visibility included; None when it is zero.
+#[allow(clippy::too_many_arguments)]
 fn connect(
     scene: &Scene,
     light: &[Vertex],
     camera: &[Vertex],
     s: usize,
     t: usize,
+    mis: MisHeuristic,
     sampler: &mut Sampler,
     lambda: &SampledWavelengths,
 ) -> Option<Connection> {
@@ -121,12 +137,19 @@ fn connect(
         return None;
     }
     let c = if s == 0 {
-        let pt = &camera[t - 1];
-        let l = pt.beta * pt.le(scene, &camera[t - 2], lambda);
-        Connection { l, splat: None, sampled: None }
+        let (pt, pt_minus) = (&camera[t - 1], &camera[t - 2]);
+        let l = pt.beta * pt.le(scene, pt_minus, lambda);
+        if l.is_black() {
+            return None;
+        }
+        let ends = Ends::new(light, camera, None, s, t);
+        Connection { l, splat: None, ends, rev: Reverse::emitter(scene, pt, pt_minus) }
     } else if t == 1 {
-        let (splat, cam) = connect_to_camera(scene, &light[s - 1], lambda)?;
-        Connection { l: splat.l, splat: Some(splat.raster), sampled: Some(cam) }
+        let qs = &light[s - 1];
+        let c = connect_to_camera(scene, qs, lambda)?;
+        let sp = c.camera.scatter(scene, -c.segment.w, lambda, TransportMode::Radiance);
+        let rev = Reverse::connection(qs, &c.scatter, &c.camera, &sp, &c.segment);
+        Connection { l: c.splat.l, splat: Some(c.splat.raster), ends: Ends::new(light, camera, None, s, t), rev }
     } else if s == 1 {
         let pt = &camera[t - 1];
         let (u_light, u) = (sampler.get1d(), sampler.get2d());
@@ -146,7 +169,10 @@ fn connect(
             Vertex::light(i, ls.point(), beta, 0.0)
         };
         q.pdf_fwd = q.pdf_light_origin(scene, pt);
-        let l = pt.beta * pt.f(scene, &q, lambda, TransportMode::Radiance) * q.beta * ls.wi.dot(pt.si.frame.n).abs();
+        init_mis(scene, std::slice::from_mut(&mut q), Subpath::Light, mis);
+        let g = q.segment_to(pt)?;
+        let sp = pt.scatter(scene, -g.w, lambda, TransportMode::Radiance);
+        let l = pt.beta * sp.f * q.beta * g.w.dot(pt.si.frame.n).abs();
         if l.is_black() {
             return None;
         }
@@ -158,25 +184,36 @@ fn connect(
         if !visible {
             return None;
         }
-        Connection { l, splat: None, sampled: Some(q) }
+        let sq = q.scatter(scene, g.w, lambda, TransportMode::Importance);
+        let rev = Reverse::connection(&q, &sq, pt, &sp, &g);
+        Connection { l, splat: None, ends: Ends::new(light, camera, Some(&q), s, t), rev }
     } else {
         let (qs, pt) = (&light[s - 1], &camera[t - 1]);
         if !qs.is_connectible(scene) || !pt.is_connectible(scene) {
             return None;
         }
-        let (w, inv_d2) = qs.direction_to(pt)?;
-        let g = qs.si.frame.n.dot(w).abs() * pt.si.frame.n.dot(w).abs() * inv_d2;
-        let l = qs.beta
-            * qs.f(scene, pt, lambda, TransportMode::Importance)
-            * pt.f(scene, qs, lambda, TransportMode::Radiance)
-            * pt.beta
-            * g;
+        let g = qs.segment_to(pt)?;
+        let sp = pt.scatter(scene, -g.w, lambda, TransportMode::Radiance);
+        if sp.f.is_black() {
+            return None;
+        }
+        let sq = qs.scatter(scene, g.w, lambda, TransportMode::Importance);
+        let geometry = qs.si.frame.n.dot(g.w).abs() * pt.si.frame.n.dot(g.w).abs() * g.inv_d2;
+        let l = qs.beta * sq.f * sp.f * pt.beta * geometry;
         if l.is_black() || !scene.unoccluded(qs.si.point(), pt.si.point()) {
             return None;
         }
-        Connection { l, splat: None, sampled: None }
+        let rev = Reverse::connection(qs, &sq, pt, &sp, &g);
+        Connection { l, splat: None, ends: Ends::new(light, camera, None, s, t), rev }
     };
     (!c.l.is_black()).then_some(c)
+}
+
+/// Which subpath a vertex array is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Subpath {
+    Camera,
+    Light,
 }
 
 /// A delta density (stored as 0) becomes 1, so it cancels in the ratios.
@@ -189,12 +226,170 @@ fn remap0(x: f32) -> f32 {
     }
 }
 
+/// R_j of `init_mis`: the ratio of the densities with which the other and
+/// the own subpath make a vertex, through the heuristic (pbrt's
+/// `remap0(pdfRev) / remap0(pdfFwd)`; every heuristic maps a product of
+/// ratios to the product of their images, so the sums can be built factor
+/// by factor).
+#[inline]
+fn ratio(h: MisHeuristic, rev: f32, fwd: f32) -> f32 {
+    h.term(remap0(rev) / remap0(fwd))
+}
+
+/// Sets the recursive MIS quantities of every vertex of a subpath v_0 ..
+/// v_{n-1} (y for the light, z for the camera) for heuristic `h`, once its
+/// walk is done; the s = 1 light sample is a one-vertex light subpath.
+///
+/// pbrt's weight of strategy (s, t) is w = 1 / (1 + S_C + S_L): on the light
+/// side S_L = sum over i = s-1 .. 0 of [i allowed] prod_{j=i}^{s-1} R_j with
+/// R_j = h(remap0(rev_j) / remap0(fwd_j)) for y_j, and likewise S_C over
+/// i = t-1 .. 1 on the camera side. "Allowed" leaves out strategies that
+/// would connect at a delta vertex or hit a point light: strategy i needs
+/// v_i and v_{i-1} non-delta (v_0 on the light side: not a point light;
+/// v_1 on the camera side: not at infinity, the pinhole cannot be joined to
+/// it; no camera strategy has i = 0). Only rev_{s-1}, rev_{s-2} (and their
+/// camera counterparts) depend on the connection, so with the connection
+/// vertex v = v_{s-1}
+///
+///   S = R_{s-1} (d_vcm(v) + R_{s-2} d_vc(v)),
+///   d_vcm(v_m) = [v_{m-1} non-delta] (the rules above at m = 0, 1),
+///   d_vc(v_m) = [v_{m-1} allowed] + R_{m-2} d_vc(v_{m-1}),  d_vc(v_0) = 0,
+///
+/// with R_{m-2} from the densities the walk stored. These are Georgiev et
+/// al.'s dVCM and dVC (tech. rep. eqs. (31)-(36), merging off) multiplied by
+/// h(pdf_fwd(v)) (dVC also by h(pdf_fwd(v_{m-1})) and the conversion of
+/// rev_{m-1} to area measure), i.e. written with pbrt's ratios: quantities
+/// of the order of the number of strategies, where the raw ones carry the
+/// scene's scale (a squared distance per segment, squared again by the
+/// power heuristic) and can leave the f32 range in large scenes.
+pub fn init_mis(scene: &Scene, path: &mut [Vertex], subpath: Subpath, h: MisHeuristic) {
+    for m in 0..path.len() {
+        let d_vcm = match (subpath, m) {
+            (Subpath::Light, 0) => !path[0].is_delta_light(scene),
+            (Subpath::Camera, 0) => false,
+            (Subpath::Camera, 1) => !path[0].delta && !path[1].is_infinite(),
+            _ => !path[m - 1].delta,
+        };
+        let d_vc = match m {
+            0 => 0.0,
+            _ => {
+                let prev = &path[m - 1];
+                let allowed = (prev.d_vcm != 0.0 && !prev.delta) as u8 as f32;
+                if m >= 2 && prev.d_vc != 0.0 {
+                    allowed + ratio(h, path[m - 2].pdf_rev, path[m - 2].pdf_fwd) * prev.d_vc
+                } else {
+                    allowed
+                }
+            }
+        };
+        path[m].d_vcm = d_vcm as u8 as f32;
+        path[m].d_vc = d_vc;
+    }
+}
+
+/// The reverse densities at and next to the connection (Veach §10.3.4), in
+/// area measure: of the connection vertices pt = z_{t-1}, qs = y_{s-1} and
+/// their predecessors being made by the other subpath's walk. pbrt-v3
+/// `MISWeight` substitutes them with scoped assignments.
+#[derive(Clone, Copy, Debug, Default)]
+struct Reverse {
+    pt: f32,
+    pt_minus: f32,
+    qs: f32,
+    qs_minus: f32,
+}
+
+impl Reverse {
+    /// s = 0: the camera subpath ends on an emitter pt, which a light
+    /// subpath would have started from (pbrt `PdfLightOrigin`, `PdfLight`).
+    fn emitter(scene: &Scene, pt: &Vertex, pt_minus: &Vertex) -> Self {
+        Self { pt: pt.pdf_light_origin(scene, pt_minus), pt_minus: pt.pdf_light(scene, pt_minus), ..Self::default() }
+    }
+
+    /// s, t >= 1: qs and pt joined by `g` (from qs to pt), with their
+    /// scatterings `sq` towards pt and `sp` towards qs (SmallVCM
+    /// `ConnectVertices`: cameraBsdfDirPdfA, lightBsdfRevPdfW, ...). The
+    /// densities of leaving a connection vertex towards its predecessor are
+    /// converted with the factor its walk stored (`Vertex::g_rev`).
+    fn connection(qs: &Vertex, sq: &Scatter, pt: &Vertex, sp: &Scatter, g: &Segment) -> Self {
+        Self {
+            pt: sq.pdf_fwd * g.to_next,
+            pt_minus: sp.pdf_rev * pt.g_rev,
+            qs: sp.pdf_fwd * g.to_this,
+            qs_minus: sq.pdf_rev * qs.g_rev,
+        }
+    }
+}
+
+/// What the weight needs of one side of the connection: the connection
+/// vertex's forward density and MIS quantities, and its predecessor's
+/// forward density.
+#[derive(Clone, Copy, Debug)]
+struct End {
+    pdf_fwd: f32,
+    d_vcm: f32,
+    d_vc: f32,
+    prev_pdf_fwd: f32,
+}
+
+impl End {
+    fn of(v: &Vertex, prev: Option<&Vertex>) -> Self {
+        Self { pdf_fwd: v.pdf_fwd, d_vcm: v.d_vcm, d_vc: v.d_vc, prev_pdf_fwd: prev.map_or(0.0, |p| p.pdf_fwd) }
+    }
+
+    /// S_L or S_C of `init_mis` (Georgiev et al. tech. rep. eqs. (40)-(41)
+    /// in ratio form) for the reverse densities `rev` at the connection
+    /// vertex and `rev_prev` at its predecessor.
+    #[inline]
+    fn sum(&self, rev: f32, rev_prev: f32, h: MisHeuristic) -> f32 {
+        let mut inner = self.d_vcm;
+        if self.d_vc != 0.0 {
+            inner += ratio(h, rev_prev, self.prev_pdf_fwd) * self.d_vc;
+        }
+        if inner == 0.0 {
+            return 0.0;
+        }
+        ratio(h, rev, self.pdf_fwd) * inner
+    }
+}
+
+/// The ends of strategy (s, t): qs = y_{s-1} and pt = z_{t-1} with their
+/// predecessors (`sampled`: the light sample of s = 1, t > 1, which stands
+/// in for y_0). There is no camera side for t = 1: no strategy has fewer
+/// camera vertices.
+#[derive(Clone, Copy, Debug)]
+struct Ends {
+    light: Option<End>,
+    camera: Option<End>,
+}
+
+impl Ends {
+    fn new(light: &[Vertex], camera: &[Vertex], sampled: Option<&Vertex>, s: usize, t: usize) -> Self {
+        let light = match s {
+            0 => None,
+            1 if t > 1 => Some(End::of(sampled.expect("s = 1 has a sampled light vertex"), None)),
+            _ => Some(End::of(&light[s - 1], s.checked_sub(2).map(|i| &light[i]))),
+        };
+        let camera = (t > 1).then(|| End::of(&camera[t - 1], Some(&camera[t - 2])));
+        Self { light, camera }
+    }
+
+    /// The MIS weight 1 / (1 + S_C + S_L) (Georgiev et al. tech. rep.
+    /// eq. (37)).
+    #[inline]
+    fn weight(&self, rev: &Reverse, h: MisHeuristic) -> f32 {
+        let side = |end: Option<End>, rev: f32, rev_prev: f32| end.map_or(0.0, |e| e.sum(rev, rev_prev, h));
+        1.0 / (1.0 + side(self.camera, rev.pt, rev.pt_minus) + side(self.light, rev.qs, rev.qs_minus))
+    }
+}
+
 /// The MIS weight of strategy (s, t) for the path made of `light[..s]` and
-/// `camera[..t]` (pbrt-v3 `MISWeight`, generalised to three heuristics).
+/// `camera[..t]`, whose MIS quantities `init_mis` has set for `heuristic`;
 /// `sampled` is the endpoint the connection made: the camera vertex when
-/// t = 1, the light sample when s = 1 (and t > 1); it stands in for
-/// camera[0] or light[0]. Public so that tests can check that the weights of
-/// all strategies of a path sum to one.
+/// t = 1, the light sample (also prepared by `init_mis`) when s = 1 and
+/// t > 1. The densities at the connection are computed as `connect` does.
+/// Public so that tests can check that the weights of all strategies of a
+/// path sum to one and match Veach's formula.
 #[allow(clippy::too_many_arguments)]
 pub fn mis_weight(
     scene: &Scene,
@@ -206,69 +401,19 @@ pub fn mis_weight(
     heuristic: MisHeuristic,
     lambda: &SampledWavelengths,
 ) -> f32 {
-    use TransportMode::{Importance, Radiance};
-    let pt = if t == 1 { sampled.expect("t = 1 has a sampled camera vertex") } else { &camera[t - 1] };
-    let qs = match s {
-        0 => None,
-        1 if t > 1 => Some(sampled.expect("s = 1 has a sampled light vertex")),
-        _ => Some(&light[s - 1]),
-    };
-    let pt_minus = (t > 1).then(|| &camera[t - 2]);
-    let qs_minus = (s > 1).then(|| &light[s - 2]);
-
-    // The reverse densities at and next to the connection (Veach §10.3.4).
-    let pt_rev = match qs {
-        Some(qs) => qs.pdf(scene, qs_minus, pt, lambda, Importance),
-        None => pt.pdf_light_origin(scene, pt_minus.expect("s = 0 needs t >= 2")),
-    };
-    let pt_minus_rev = pt_minus.map_or(0.0, |pm| match qs {
-        Some(qs) => pt.pdf(scene, Some(qs), pm, lambda, Importance),
-        None => pt.pdf_light(scene, pm),
-    });
-    let qs_rev = qs.map_or(0.0, |qs| pt.pdf(scene, pt_minus, qs, lambda, Radiance));
-    let qs_minus_rev = qs_minus.map_or(0.0, |qm| qs.expect("s >= 2").pdf(scene, Some(pt), qm, lambda, Radiance));
-
-    let mut sum = 0.0;
-    // Strategies with fewer camera vertices: (s + t - i, i), i = t-1 .. 1.
-    let mut r = 1.0;
-    for i in (1..t).rev() {
-        let v = &camera[i];
-        let rev = if i == t - 1 {
-            pt_rev
-        } else if i == t - 2 {
-            pt_minus_rev
-        } else {
-            v.pdf_rev
+    let rev = if s == 0 {
+        Reverse::emitter(scene, &camera[t - 1], &camera[t - 2])
+    } else {
+        let pt = if t == 1 { sampled.expect("t = 1 has a sampled camera vertex") } else { &camera[t - 1] };
+        let qs = if s == 1 && t > 1 { sampled.expect("s = 1 has a sampled light vertex") } else { &light[s - 1] };
+        let Some(g) = qs.segment_to(pt) else {
+            return 0.0;
         };
-        r *= remap0(rev) / remap0(v.pdf_fwd);
-        // Joining z_{i-1} to z_i needs both non-specular (z_{t-1} is the
-        // connection vertex, non-specular by construction); a light at
-        // infinity cannot be joined to the pinhole.
-        let delta = (i != t - 1 && v.delta) || camera[i - 1].delta;
-        let pinhole_sees_infinity = i == 1 && v.is_infinite();
-        if !delta && !pinhole_sees_infinity {
-            sum += heuristic.term(r);
-        }
-    }
-    // Strategies with fewer light vertices: (i, s + t - i), i = s-1 .. 0.
-    let mut r = 1.0;
-    for i in (0..s).rev() {
-        let v = if i == s - 1 { qs.expect("s >= 1") } else { &light[i] };
-        let rev = if i == s - 1 {
-            qs_rev
-        } else if i == s - 2 {
-            qs_minus_rev
-        } else {
-            v.pdf_rev
-        };
-        r *= remap0(rev) / remap0(v.pdf_fwd);
-        let delta_prev = if i > 0 { light[i - 1].delta } else { v.is_delta_light(scene) };
-        let delta = (i != s - 1 && v.delta) || delta_prev;
-        if !delta {
-            sum += heuristic.term(r);
-        }
-    }
-    1.0 / (1.0 + sum)
+        let sq = qs.scatter(scene, g.w, lambda, TransportMode::Importance);
+        let sp = pt.scatter(scene, -g.w, lambda, TransportMode::Radiance);
+        Reverse::connection(qs, &sq, pt, &sp, &g)
+    };
+    Ends::new(light, camera, sampled, s, t).weight(&rev, heuristic)
 }
 
 /// Unit tests of the pieces that need no scene.

@@ -50,8 +50,8 @@ impl Integrator for LightTracer {
         let path = &mut ws.paths.light;
         light_subpath(scene, sampler, lambda, self.max_depth, path);
         for v in path.iter() {
-            if let Some((splat, _)) = connect_to_camera(scene, v, lambda) {
-                ws.splats.push(splat);
+            if let Some(c) = connect_to_camera(scene, v, lambda) {
+                ws.splats.push(c.splat);
             }
         }
         SampledSpectrum::ZERO

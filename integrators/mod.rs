@@ -7,7 +7,7 @@ mod light;
 mod path;
 mod simple_path;
 
-pub use bdpt::{mis_weight, Bdpt};
+pub use bdpt::{init_mis, mis_weight, Bdpt, Subpath};
 
 use crate::render::Workspace;
 use crate::sampling::Sampler;

@@ -4,7 +4,7 @@
 //! |-------------|----------|---------|--------------------------------------|
 //! | reflectance | spectrum | 0.5     | albedo R(lambda), in [0, 1]          |
 
-use super::{abs_cos_theta, same_hemisphere, BsdfFlags, BsdfSample, TransportMode};
+use super::{abs_cos_theta, same_hemisphere, BsdfEval, BsdfFlags, BsdfSample, TransportMode};
 use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
 use crate::spectrum::{SampledSpectrum, SampledWavelengths, Spectrum};
 use glam::{Vec2, Vec3A};
@@ -63,6 +63,19 @@ impl Diffuse {
             return 0.0;
         }
         cosine_hemisphere_pdf(abs_cos_theta(wi))
+    }
+
+    /// `eval` and `pdf` both ways with one hemisphere test.
+    #[inline]
+    pub fn eval_with_pdfs(&self, wo: Vec3A, wi: Vec3A, lambda: &SampledWavelengths) -> BsdfEval {
+        if !same_hemisphere(wo, wi) {
+            return BsdfEval { f: SampledSpectrum::ZERO, pdf: 0.0, pdf_rev: 0.0 };
+        }
+        BsdfEval {
+            f: self.reflectance.sample(lambda) * FRAC_1_PI,
+            pdf: cosine_hemisphere_pdf(abs_cos_theta(wi)),
+            pdf_rev: cosine_hemisphere_pdf(abs_cos_theta(wo)),
+        }
     }
 
     pub fn flags(&self) -> BsdfFlags {

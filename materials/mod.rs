@@ -140,6 +140,14 @@ impl BsdfSample {
     }
 }
 
+/// `Bsdf::eval_with_pdfs`: f(wo, wi), pdf(wo -> wi) and pdf(wi -> wo).
+#[derive(Clone, Copy, Debug)]
+pub struct BsdfEval {
+    pub f: SampledSpectrum,
+    pub pdf: f32,
+    pub pdf_rev: f32,
+}
+
 /// Every BSDF prism knows; matched (not dispatched) in the hot loop.
 #[derive(Clone, Debug)]
 pub enum Bsdf {
@@ -181,6 +189,21 @@ impl Bsdf {
     #[inline]
     pub fn pdf(&self, wo: Vec3A, wi: Vec3A, lambda: &SampledWavelengths, mode: TransportMode) -> f32 {
         dispatch!(self, b => b.pdf(wo, wi, lambda, mode))
+    }
+
+    /// f(wo, wi) with the density of sampling wi from wo and, in the adjoint
+    /// mode, of sampling wo from wi: what a BDPT connection needs at each end
+    /// (Veach §10.3.4; SmallVCM `BSDF::Evaluate` returns the same three).
+    #[inline]
+    pub fn eval_with_pdfs(&self, wo: Vec3A, wi: Vec3A, lambda: &SampledWavelengths, mode: TransportMode) -> BsdfEval {
+        match self {
+            Bsdf::Diffuse(b) => b.eval_with_pdfs(wo, wi, lambda),
+            _ => BsdfEval {
+                f: self.eval(wo, wi, lambda, mode),
+                pdf: self.pdf(wo, wi, lambda, mode),
+                pdf_rev: self.pdf(wi, wo, lambda, mode.flip()),
+            },
+        }
     }
 
     /// The union of the lobes' flags.

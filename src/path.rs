@@ -93,6 +93,47 @@ pub struct Vertex {
     pub delta: bool,
     pub pdf_fwd: f32,
     pub pdf_rev: f32,
+    /// Converts a density of leaving this vertex towards the previous vertex
+    /// of its own subpath into area measure there (`Segment::to_this` of the
+    /// segment arriving here), so a reverse density found at a connection
+    /// needs no geometry recomputed; 0 for a subpath's first vertex.
+    pub g_rev: f32,
+    /// BDPT's recursive MIS quantities, set after the walk by
+    /// `integrators::bdpt` (which explains them); zero until then.
+    pub d_vcm: f32,
+    pub d_vc: f32,
+}
+
+/// The straight segment from a vertex to `next` (`Vertex::segment_to`).
+#[derive(Clone, Copy, Debug)]
+pub struct Segment {
+    /// Unit direction from the vertex towards `next`.
+    pub w: Vec3A,
+    /// 1 / d^2, or 1 if either end is at infinity.
+    pub inv_d2: f32,
+    /// Converts a density of leaving the vertex along `w` into area measure
+    /// at `next`: |cos| at `next` (geometric normal; 1 off surfaces) / d^2
+    /// (Veach eq. 8.10; pbrt `ConvertDensity`); 1 if `next` is at infinity,
+    /// where densities stay in solid angle.
+    pub to_next: f32,
+    /// The same for a density of leaving `next` towards the vertex.
+    pub to_this: f32,
+}
+
+/// A vertex's scattering towards a direction, with both densities MIS needs
+/// (`Vertex::scatter`).
+#[derive(Clone, Copy, Debug)]
+pub struct Scatter {
+    /// The BSDF (importance mode: times Veach's eq. 5.19 correction), or for
+    /// a light origin the directional part of emission Le^(1) (Veach eq.
+    /// 8.7); zero at the camera and at infinity.
+    pub f: SampledSpectrum,
+    /// Density of the vertex's walk choosing the direction: solid angle, or
+    /// planar from the environment (pbrt `Vertex::Pdf` before conversion).
+    pub pdf_fwd: f32,
+    /// Density of the adjoint walk arriving along the direction choosing the
+    /// vertex's `wo` (solid angle; zero for endpoints, which have no `wo`).
+    pub pdf_rev: f32,
 }
 
 /// Reused per-worker vertex storage for the bidirectional estimators (no
@@ -105,7 +146,7 @@ pub struct PathScratch {
 
 impl Vertex {
     fn new(kind: VertexKind, si: SurfaceInteraction, beta: SampledSpectrum, pdf_fwd: f32) -> Self {
-        Self { kind, si, beta, delta: false, pdf_fwd, pdf_rev: 0.0 }
+        Self { kind, si, beta, delta: false, pdf_fwd, pdf_rev: 0.0, g_rev: 0.0, d_vcm: 0.0, d_vc: 0.0 }
     }
 
     fn endpoint(kind: VertexKind, at: SurfacePoint, wo: Vec3A, light: Option<u32>) -> SurfaceInteraction {
@@ -194,76 +235,60 @@ impl Vertex {
         Some((d / d2.sqrt(), 1.0 / d2))
     }
 
+    /// The segment to `next`, with the factors that convert densities of
+    /// leaving either end into area measure at the other (see `Segment`;
+    /// from a vertex at infinity a density is planar, per unit area across
+    /// the direction, so only |cos| applies). None for coincident points.
+    #[inline]
+    pub fn segment_to(&self, next: &Vertex) -> Option<Segment> {
+        let (w, inv_d2) = self.direction_to(next)?;
+        let cos = |v: &Vertex| if v.is_on_surface() { v.si.ng.dot(w).abs() } else { 1.0 };
+        let to = |v: &Vertex| if v.is_infinite() { 1.0 } else { cos(v) * inv_d2 };
+        Some(Segment { w, inv_d2, to_next: to(next), to_this: to(self) })
+    }
+
     /// Converts a density of leaving this vertex towards `next` into area
-    /// measure at `next`: pdf_w |cos at next| / d^2 with next's GEOMETRIC
-    /// normal (Veach eq. 8.10; pbrt `ConvertDensity`). From a vertex at
-    /// infinity `pdf` is planar (per unit area across the direction), so
-    /// only |cos| applies; towards a vertex at infinity it stays a solid-angle
-    /// density.
+    /// measure at `next` (`Segment::to_next`); 0 for coincident points.
     #[inline]
     pub fn convert_density(&self, pdf: f32, next: &Vertex) -> f32 {
-        let Some((w, inv_d2)) = self.direction_to(next) else {
-            return 0.0;
-        };
-        if next.is_infinite() {
-            return pdf;
-        }
-        let cos = if next.is_on_surface() { next.si.ng.dot(w).abs() } else { 1.0 };
-        pdf * cos * inv_d2
+        self.segment_to(next).map_or(0.0, |g| pdf * g.to_next)
     }
 
-    /// The scattering factor at this vertex for the step towards `next`: the
-    /// BSDF between `wo` and the direction to `next` (importance mode times
-    /// Veach's eq. 5.19 correction), or for a light origin the directional
-    /// part of emission, Le^(1) (Veach eq. 8.7), 0 or 1 for prism's lights.
-    pub fn f(&self, scene: &Scene, next: &Vertex, lambda: &SampledWavelengths, mode: TransportMode) -> SampledSpectrum {
-        let Some((wi, _)) = self.direction_to(next) else {
-            return SampledSpectrum::ZERO;
-        };
+    /// Scattering at this vertex towards the unit direction `wi`: f and both
+    /// densities from one BSDF evaluation (SmallVCM `BSDF::Evaluate`), `wo`
+    /// being the direction the walk arrived along. A light origin gives
+    /// Le^(1) and its emission density, the pinhole its directional
+    /// importance density, a vertex at infinity the planar density of its
+    /// emitted rays (pbrt `Vertex::f`, `Vertex::Pdf`, `PdfLight`).
+    pub fn scatter(&self, scene: &Scene, wi: Vec3A, lambda: &SampledWavelengths, mode: TransportMode) -> Scatter {
         match self.kind {
             VertexKind::Surface => {
-                let bsdf = scene.bsdf(&self.si);
-                let f = bsdf.eval(self.si.frame.to_local(self.si.wo), self.si.frame.to_local(wi), lambda, mode);
-                match mode {
-                    TransportMode::Radiance => f,
-                    TransportMode::Importance => f * self.si.shading_correction(self.si.wo, wi),
-                }
-            }
-            VertexKind::Light => match self.emitter(scene) {
-                Some((_, Light::Area(a))) if !a.two_sided && self.si.ng.dot(wi) <= 0.0 => SampledSpectrum::ZERO,
-                _ => SampledSpectrum::ONE,
-            },
-            VertexKind::Camera | VertexKind::Environment => SampledSpectrum::ZERO,
-        }
-    }
-
-    /// Area density at `next` of the walk through this vertex choosing
-    /// `next`, having arrived from `prev` (pbrt `Vertex::Pdf`). `mode` is the
-    /// transport mode of the walk that would make that choice. A light origin
-    /// gives its emission density (`pdf_light`).
-    pub fn pdf(
-        &self,
-        scene: &Scene,
-        prev: Option<&Vertex>,
-        next: &Vertex,
-        lambda: &SampledWavelengths,
-        mode: TransportMode,
-    ) -> f32 {
-        let Some((wn, _)) = self.direction_to(next) else {
-            return 0.0;
-        };
-        let pdf_w = match self.kind {
-            VertexKind::Light | VertexKind::Environment => return self.pdf_light(scene, next),
-            VertexKind::Camera => scene.camera.pdf_we_dir(wn),
-            VertexKind::Surface => {
-                let Some((wp, _)) = prev.and_then(|prev| self.direction_to(prev)) else {
-                    return 0.0;
+                let frame = &self.si.frame;
+                let e =
+                    scene.bsdf(&self.si).eval_with_pdfs(frame.to_local(self.si.wo), frame.to_local(wi), lambda, mode);
+                let f = match mode {
+                    TransportMode::Radiance => e.f,
+                    TransportMode::Importance => e.f * self.si.shading_correction(self.si.wo, wi),
                 };
-                let f = &self.si.frame;
-                scene.bsdf(&self.si).pdf(f.to_local(wp), f.to_local(wn), lambda, mode)
+                Scatter { f, pdf_fwd: e.pdf, pdf_rev: e.pdf_rev }
             }
-        };
-        self.convert_density(pdf_w, next)
+            VertexKind::Light | VertexKind::Environment => {
+                let Some((_, light)) = self.emitter(scene) else {
+                    return Scatter { f: SampledSpectrum::ZERO, pdf_fwd: 0.0, pdf_rev: 0.0 };
+                };
+                let f = match light {
+                    Light::Area(a) if !a.two_sided && self.si.ng.dot(wi) <= 0.0 => SampledSpectrum::ZERO,
+                    Light::Environment(_) => SampledSpectrum::ZERO,
+                    _ => SampledSpectrum::ONE,
+                };
+                let (pdf_pos, pdf_dir) = light.pdf_le(self.si.ng, wi);
+                let pdf_fwd = if self.is_infinite() { pdf_pos } else { pdf_dir };
+                Scatter { f, pdf_fwd, pdf_rev: 0.0 }
+            }
+            VertexKind::Camera => {
+                Scatter { f: SampledSpectrum::ZERO, pdf_fwd: scene.camera.pdf_we_dir(wi), pdf_rev: 0.0 }
+            }
+        }
     }
 
     /// This vertex as an emitter: area density at `next` of a light subpath
@@ -416,21 +441,16 @@ fn random_walk(
         if path.len() >= max_vertices {
             return;
         }
-        let prev = *path.last().expect("a walk starts at an endpoint");
         let Some(si) = scene.intersect(&ray) else {
             // Only radiance (camera) walks can end on the environment:
             // a light walk that escapes carries importance to nothing.
             if let (TransportMode::Radiance, Some((i, _))) = (mode, scene.environment()) {
                 let far = ray.o + ray.d * (2.0 * scene.radius);
-                let mut v = Vertex::environment(i, far, -ray.d, beta, 0.0);
-                v.pdf_fwd = prev.convert_density(pdf, &v);
-                path.push(v);
+                push_vertex(path, Vertex::environment(i, far, -ray.d, beta, 0.0), pdf);
             }
             return;
         };
-        let mut v = Vertex::new(VertexKind::Surface, si, beta, 0.0);
-        v.pdf_fwd = prev.convert_density(pdf, &v);
-        path.push(v);
+        push_vertex(path, Vertex::new(VertexKind::Surface, si, beta, 0.0), pdf);
         // Fetch the BSDF now, even if the walk stops here: connections will
         // evaluate it, and a dispersive one must end the secondaries first.
         let bsdf = scene.bsdf_at(&si, lambda);
@@ -456,7 +476,7 @@ fn random_walk(
         }
         let n = path.len();
         path[n - 1].delta = bs.is_specular();
-        path[n - 2].pdf_rev = path[n - 1].convert_density(pdf_rev, &path[n - 2]);
+        path[n - 2].pdf_rev = pdf_rev * path[n - 1].g_rev;
         // Roulette on the throughput relative to the walk's start.
         let mut rel = beta / beta0;
         if beta.is_black() || !russian_roulette(&mut rel, eta_scale, depth, sampler.get1d()) {
@@ -467,13 +487,26 @@ fn random_walk(
     }
 }
 
+/// Appends `v`, reached from the path's last vertex by a direction chosen
+/// with density `pdf`: its forward density in area measure and the factor
+/// that will convert its reverse density, from one `Segment`.
+#[inline]
+fn push_vertex(path: &mut Vec<Vertex>, mut v: Vertex, pdf: f32) {
+    let prev = path.last().expect("a walk starts at an endpoint");
+    if let Some(g) = prev.segment_to(&v) {
+        v.pdf_fwd = pdf * g.to_next;
+        v.g_rev = g.to_this;
+    }
+    path.push(v);
+}
+
 /// The t = 1 strategy: vertex `v` of a light subpath seen by the pinhole
-/// (Veach §10.2; pbrt-v3 `ConnectBDPT` t == 1). Returns the splat
+/// (Veach §10.2; pbrt-v3 `ConnectBDPT` t == 1): the splat
 /// beta f |cos_v| We / pdf (`Camera::sample_wi`; f in importance mode with
-/// the shading correction, |cos| with the shading normal) and the camera
-/// vertex made, or None if `v` cannot connect, projects outside the image,
-/// carries nothing or is occluded.
-pub fn connect_to_camera(scene: &Scene, v: &Vertex, lambda: &SampledWavelengths) -> Option<(Splat, Vertex)> {
+/// the shading correction, |cos| with the shading normal), or None if `v`
+/// cannot connect, projects outside the image, carries nothing or is
+/// occluded.
+pub fn connect_to_camera(scene: &Scene, v: &Vertex, lambda: &SampledWavelengths) -> Option<CameraConnection> {
     if v.is_infinite() || !v.is_connectible(scene) {
         return None;
     }
@@ -482,12 +515,25 @@ pub fn connect_to_camera(scene: &Scene, v: &Vertex, lambda: &SampledWavelengths)
         return None;
     }
     let camera = Vertex::camera(scene, SampledSpectrum::splat(cs.we / cs.pdf_w));
-    let cos = if v.is_on_surface() { cs.wi.dot(v.si.frame.n).abs() } else { 1.0 };
-    let l = v.beta * v.f(scene, &camera, lambda, TransportMode::Importance) * camera.beta * cos;
+    let segment = v.segment_to(&camera)?;
+    let scatter = v.scatter(scene, segment.w, lambda, TransportMode::Importance);
+    let cos = if v.is_on_surface() { segment.w.dot(v.si.frame.n).abs() } else { 1.0 };
+    let l = v.beta * scatter.f * camera.beta * cos;
     if l.is_black() || !scene.unoccluded(v.si.point(), camera.si.point()) {
         return None;
     }
-    Some((Splat { raster: cs.raster, l }, camera))
+    Some(CameraConnection { splat: Splat { raster: cs.raster, l }, camera, segment, scatter })
+}
+
+/// A light-subpath vertex joined to the pinhole (`connect_to_camera`): the
+/// splat, the camera vertex made for it, the segment from the light vertex
+/// to it and the light vertex's scattering along that segment (BDPT's MIS
+/// reads the densities there).
+pub struct CameraConnection {
+    pub splat: Splat,
+    pub camera: Vertex,
+    pub segment: Segment,
+    pub scatter: Scatter,
 }
 
 /// Delta lights seen only through smooth specular surfaces (S-D-S paths with

@@ -1,8 +1,9 @@
 //! Proofs for `bdpt` (integrators/bdpt.rs): white rooms (diffuse, and
 //! with mirrors; the furnaces of every integrator are in tests/furnace.rs), agreement with `path` and `light` on
 //! the Cornell box for every MIS heuristic, MIS weights that sum to one over
-//! the strategies of a path (checked against Veach's formula on random paths
-//! in random scenes, with delta vertices, point lights and the environment),
+//! the strategies of a path (checked against Veach's formula and pbrt's
+//! non-recursive weight on random paths in random scenes, with delta
+//! vertices, point lights and the environment),
 //! per-strategy images that add up to the image, and determinism.
 //! Statistics follow VALIDATION.md §1; each test has a negative control.
 //!
@@ -14,7 +15,7 @@ mod scenes;
 use glam::{Vec2, Vec3A};
 use prism::camera::Camera;
 use prism::film::Film;
-use prism::integrators::{self, mis_weight, Integrator, IntegratorOptions, MisHeuristic};
+use prism::integrators::{self, init_mis, mis_weight, Integrator, IntegratorOptions, MisHeuristic, Subpath};
 use prism::materials::{Bsdf, Conductor, Dielectric, Diffuse, Mirror, TransportMode};
 use prism::path::{camera_subpath, light_subpath, Vertex, VertexKind};
 use prism::render::{render, render_with_strategies, RenderOptions, StrategyImages};
@@ -207,6 +208,35 @@ fn allowed(scene: &Scene, x: &[Vertex], t: usize) -> bool {
     (t == 1 || !x[t - 1].delta) && (t == k || !x[t].delta)
 }
 
+/// Area density at `next` of the walk through `v` choosing `next`, having
+/// arrived from `prev` (pbrt `Vertex::Pdf`), every direction taken from the
+/// vertex positions: the definition the walks' stored densities and the
+/// connection's are checked against.
+fn pdf(
+    scene: &Scene,
+    v: &Vertex,
+    prev: Option<&Vertex>,
+    next: &Vertex,
+    lambda: &SampledWavelengths,
+    mode: TransportMode,
+) -> f32 {
+    let Some((wn, _)) = v.direction_to(next) else {
+        return 0.0;
+    };
+    let pdf_w = match v.kind {
+        VertexKind::Light | VertexKind::Environment => return v.pdf_light(scene, next),
+        VertexKind::Camera => scene.camera.pdf_we_dir(wn),
+        VertexKind::Surface => {
+            let Some((wp, _)) = prev.and_then(|prev| v.direction_to(prev)) else {
+                return 0.0;
+            };
+            let f = &v.si.frame;
+            scene.bsdf(&v.si).pdf(f.to_local(wp), f.to_local(wn), lambda, mode)
+        }
+    };
+    v.convert_density(pdf_w, next)
+}
+
 /// Densities of every vertex of the full path x_0 (pinhole) .. x_k
 /// (emitter), in area measure (solid angle at infinity): pc from the camera
 /// side, pl from the light side.
@@ -214,16 +244,95 @@ fn densities(scene: &Scene, x: &[Vertex], lambda: &SampledWavelengths) -> (Vec<f
     let k = x.len() - 1;
     let mut pc = vec![0.0; k + 1];
     let mut pl = vec![0.0; k + 1];
-    pc[1] = x[0].pdf(scene, None, &x[1], lambda, TransportMode::Radiance);
+    pc[1] = pdf(scene, &x[0], None, &x[1], lambda, TransportMode::Radiance);
     for i in 2..=k {
-        pc[i] = x[i - 1].pdf(scene, Some(&x[i - 2]), &x[i], lambda, TransportMode::Radiance);
+        pc[i] = pdf(scene, &x[i - 1], Some(&x[i - 2]), &x[i], lambda, TransportMode::Radiance);
     }
     pl[k] = x[k].pdf_light_origin(scene, &x[k - 1]);
     pl[k - 1] = x[k].pdf_light(scene, &x[k - 1]);
     for i in 1..k.saturating_sub(1) {
-        pl[i] = x[i + 1].pdf(scene, Some(&x[i + 2]), &x[i], lambda, TransportMode::Importance);
+        pl[i] = pdf(scene, &x[i + 1], Some(&x[i + 2]), &x[i], lambda, TransportMode::Importance);
     }
     (pc, pl)
+}
+
+fn remap0_f32(x: f32) -> f32 {
+    if x == 0.0 {
+        1.0
+    } else {
+        x
+    }
+}
+
+/// The MIS weight as pbrt-v3 `MISWeight` computes it (generalised to the
+/// three heuristics): both subpaths walked for the strategy, the four
+/// densities at the connection from `pdf` with positional directions. The
+/// reference for `mis_weight`, which builds the same sums recursively.
+#[allow(clippy::too_many_arguments)]
+fn pbrt_mis_weight(
+    scene: &Scene,
+    light: &[Vertex],
+    camera: &[Vertex],
+    sampled: Option<&Vertex>,
+    s: usize,
+    t: usize,
+    heuristic: MisHeuristic,
+    lambda: &SampledWavelengths,
+) -> f32 {
+    use TransportMode::{Importance, Radiance};
+    let pt = if t == 1 { sampled.unwrap() } else { &camera[t - 1] };
+    let qs = match s {
+        0 => None,
+        1 if t > 1 => Some(sampled.unwrap()),
+        _ => Some(&light[s - 1]),
+    };
+    let pt_minus = (t > 1).then(|| &camera[t - 2]);
+    let qs_minus = (s > 1).then(|| &light[s - 2]);
+    let pt_rev = match qs {
+        Some(qs) => pdf(scene, qs, qs_minus, pt, lambda, Importance),
+        None => pt.pdf_light_origin(scene, pt_minus.unwrap()),
+    };
+    let pt_minus_rev = pt_minus.map_or(0.0, |pm| match qs {
+        Some(qs) => pdf(scene, pt, Some(qs), pm, lambda, Importance),
+        None => pt.pdf_light(scene, pm),
+    });
+    let qs_rev = qs.map_or(0.0, |qs| pdf(scene, pt, pt_minus, qs, lambda, Radiance));
+    let qs_minus_rev = qs_minus.map_or(0.0, |qm| pdf(scene, qs.unwrap(), Some(pt), qm, lambda, Radiance));
+    let mut sum = 0.0;
+    let mut r = 1.0;
+    for i in (1..t).rev() {
+        let v = &camera[i];
+        let rev = if i == t - 1 {
+            pt_rev
+        } else if i == t - 2 {
+            pt_minus_rev
+        } else {
+            v.pdf_rev
+        };
+        r *= remap0_f32(rev) / remap0_f32(v.pdf_fwd);
+        let delta = (i != t - 1 && v.delta) || camera[i - 1].delta;
+        let pinhole_sees_infinity = i == 1 && v.is_infinite();
+        if !delta && !pinhole_sees_infinity {
+            sum += heuristic.term(r);
+        }
+    }
+    let mut r = 1.0;
+    for i in (0..s).rev() {
+        let v = if i == s - 1 { qs.unwrap() } else { &light[i] };
+        let rev = if i == s - 1 {
+            qs_rev
+        } else if i == s - 2 {
+            qs_minus_rev
+        } else {
+            v.pdf_rev
+        };
+        r *= remap0_f32(rev) / remap0_f32(v.pdf_fwd);
+        let delta_prev = if i > 0 { light[i - 1].delta } else { v.is_delta_light(scene) };
+        if !((i != s - 1 && v.delta) || delta_prev) {
+            sum += heuristic.term(r);
+        }
+    }
+    1.0 / (1.0 + sum)
 }
 
 fn remap0(x: f32) -> f64 {
@@ -235,12 +344,34 @@ fn remap0(x: f32) -> f64 {
 }
 
 /// The subpaths with which strategy (s, t) makes the full path, with the
-/// densities a walk would have stored, and the endpoint it samples.
-fn split(x: &[Vertex], pc: &[f32], pl: &[f32], t: usize) -> (Vec<Vertex>, Vec<Vertex>, Option<Vertex>) {
+/// densities a walk would have stored and the MIS quantities of `init_mis`
+/// for `mis`, and the endpoint it samples.
+fn split(
+    scene: &Scene,
+    x: &[Vertex],
+    pc: &[f32],
+    pl: &[f32],
+    t: usize,
+    mis: MisHeuristic,
+) -> (Vec<Vertex>, Vec<Vertex>, Option<Vertex>) {
     let k = x.len() - 1;
     let s = k + 1 - t;
-    let camera: Vec<Vertex> = (0..t).map(|i| Vertex { pdf_fwd: pc[i], pdf_rev: pl[i], ..x[i] }).collect();
-    let light: Vec<Vertex> = (0..s)
+    // A vertex as its subpath would hold it: `wo` and `g_rev` refer to its
+    // predecessor there (x_{i-1} on the camera side, x_{i+1} on the light
+    // side), with directions from the positions as `pdf` takes them.
+    let facing = |mut v: Vertex, prev: Option<&Vertex>| {
+        if let Some(prev) = prev {
+            if v.kind == VertexKind::Surface {
+                v.si.wo = v.direction_to(prev).unwrap().0;
+            }
+            v.g_rev = prev.segment_to(&v).unwrap().to_this;
+        }
+        v
+    };
+    let mut camera: Vec<Vertex> = (0..t)
+        .map(|i| facing(Vertex { pdf_fwd: pc[i], pdf_rev: pl[i], ..x[i] }, i.checked_sub(1).map(|i| &x[i])))
+        .collect();
+    let mut light: Vec<Vertex> = (0..s)
         .map(|j| {
             let mut v = Vertex { pdf_fwd: pl[k - j], pdf_rev: pc[k - j], ..x[k - j] };
             if j == 0 {
@@ -249,9 +380,11 @@ fn split(x: &[Vertex], pc: &[f32], pl: &[f32], t: usize) -> (Vec<Vertex>, Vec<Ve
                     v.kind = VertexKind::Light;
                 }
             }
-            v
+            facing(v, (j > 0).then(|| &x[k - j + 1]))
         })
         .collect();
+    init_mis(scene, &mut camera, Subpath::Camera, mis);
+    init_mis(scene, &mut light, Subpath::Light, mis);
     let sampled = if t == 1 {
         Some(camera[0])
     } else if s == 1 {
@@ -271,6 +404,10 @@ struct MisCheck {
     worst_sum: f64,
     /// Largest relative difference from Veach's formula.
     worst_formula: f64,
+    /// Largest relative difference from pbrt's non-recursive weight, and
+    /// (negative control) from it when `init_mis` ran for another heuristic.
+    worst_reference: f64,
+    worst_reference_wrong_heuristic: f64,
     /// Densities stored by the walks compared with those recomputed from the
     /// full path: how many, and how many differ by more than 1e-3 and 1e-2
     /// relative. The walk stores the pdf of the sampled direction, the
@@ -282,6 +419,14 @@ struct MisCheck {
     densities_far_off: usize,
     swapped_checked: usize,
     swapped_off: usize,
+    /// `mis_weight` against pbrt's on the walks' own subpaths, whose `wo`
+    /// is the direction the walk travelled (`pbrt_mis_weight` recomputes it
+    /// from the vertex positions, which the ray-origin offset moved):
+    /// strategies compared, how many differ by more than 1e-3 relative, and
+    /// the largest difference.
+    walk_checked: usize,
+    walk_off: usize,
+    worst_walk: f64,
     /// The negative control: |sum - 1| when s = 1 keeps the NEE density.
     worst_sum_without_substitution: f64,
 }
@@ -311,11 +456,20 @@ fn check_path(scene: &Scene, x: &[Vertex], lambda: &SampledWavelengths, out: &mu
         let total: f64 = p.iter().map(|&p| h(p)).sum();
         let mut sum = 0.0;
         for (&t, &pt) in ts.iter().zip(&p) {
-            let (light, camera, sampled) = split(x, &pc, &pl, t);
-            let w = mis_weight(scene, &light, &camera, sampled.as_ref(), k + 1 - t, t, mis, lambda) as f64;
+            let s = k + 1 - t;
+            let (light, camera, sampled) = split(scene, x, &pc, &pl, t, mis);
+            let w = mis_weight(scene, &light, &camera, sampled.as_ref(), s, t, mis, lambda) as f64;
             sum += w;
             let direct = h(pt) / total;
             out.worst_formula = out.worst_formula.max((w - direct).abs() / direct.max(1e-3));
+            let reference = pbrt_mis_weight(scene, &light, &camera, sampled.as_ref(), s, t, mis, lambda) as f64;
+            out.worst_reference = out.worst_reference.max((w - reference).abs() / reference.max(1e-3));
+            if mis == MisHeuristic::Power {
+                let (light, camera, sampled) = split(scene, x, &pc, &pl, t, MisHeuristic::Balance);
+                let w_bad = mis_weight(scene, &light, &camera, sampled.as_ref(), s, t, mis, lambda) as f64;
+                out.worst_reference_wrong_heuristic =
+                    out.worst_reference_wrong_heuristic.max((w_bad - reference).abs() / reference.max(1e-3));
+            }
             // Negative control: s = 1 with the density of the NEE sample
             // (solid angle, sample_li) instead of the light-origin density.
             if mis == MisHeuristic::Balance
@@ -334,6 +488,46 @@ fn check_path(scene: &Scene, x: &[Vertex], lambda: &SampledWavelengths, out: &mu
             }
         }
         out.worst_sum = out.worst_sum.max((sum - 1.0).abs());
+    }
+}
+
+/// Every strategy (s, t) of one sample's subpaths that `connect` would
+/// weight (connectible ends, emission for s = 0; the light origin stands in
+/// for the s = 1 light sample), weighted by `mis_weight` and by pbrt's
+/// `MISWeight`, with the power heuristic.
+fn walk_weights(
+    scene: &Scene,
+    cam: &mut [Vertex],
+    lig: &mut [Vertex],
+    lambda: &SampledWavelengths,
+    out: &mut MisCheck,
+) {
+    let mis = MisHeuristic::Power;
+    init_mis(scene, cam, Subpath::Camera, mis);
+    init_mis(scene, lig, Subpath::Light, mis);
+    let pinhole = Vertex::camera(scene, prism::spectrum::SampledSpectrum::ONE);
+    for t in 1..=cam.len() {
+        for s in 0..=lig.len() {
+            if s + t < 2 || (t > 1 && s != 0 && cam[t - 1].is_infinite()) {
+                continue;
+            }
+            let connectible = |v: &Vertex| !v.is_infinite() && v.is_connectible(scene);
+            let sampled = match (s, t) {
+                (0, _) if cam[t - 1].le(scene, &cam[t - 2], lambda).is_black() => continue,
+                (0, _) => None,
+                (_, 1) if !connectible(&lig[s - 1]) => continue,
+                (_, 1) => Some(pinhole),
+                (_, _) if !cam[t - 1].is_connectible(scene) || !lig[s - 1].is_connectible(scene) => continue,
+                (1, _) => Some(lig[0]),
+                _ => None,
+            };
+            let w = mis_weight(scene, lig, cam, sampled.as_ref(), s, t, mis, lambda) as f64;
+            let reference = pbrt_mis_weight(scene, lig, cam, sampled.as_ref(), s, t, mis, lambda) as f64;
+            let d = (w - reference).abs() / reference.max(1e-3);
+            out.walk_checked += 1;
+            out.walk_off += (d > 1e-3) as usize;
+            out.worst_walk = out.worst_walk.max(d);
+        }
     }
 }
 
@@ -356,11 +550,16 @@ fn mis_weights_of_all_strategies_sum_to_one() {
         environment: 0,
         worst_sum: 0.0,
         worst_formula: 0.0,
+        worst_reference: 0.0,
+        worst_reference_wrong_heuristic: 0.0,
         densities_checked: 0,
         densities_off: 0,
         densities_far_off: 0,
         swapped_checked: 0,
         swapped_off: 0,
+        walk_checked: 0,
+        walk_off: 0,
+        worst_walk: 0.0,
         worst_sum_without_substitution: 0.0,
     };
     let (mut cam, mut lig) = (Vec::new(), Vec::new());
@@ -372,6 +571,7 @@ fn mis_weights_of_all_strategies_sum_to_one() {
             let raster = sampler.get2d() * Vec2::new(32.0, 32.0);
             camera_subpath(&scene, raster, &mut sampler, &mut lambda, 8, &mut cam);
             light_subpath(&scene, &mut sampler, &mut lambda, 8, &mut lig);
+            walk_weights(&scene, &mut cam, &mut lig, &lambda, &mut out);
             // Full paths that end where the camera walk found emission.
             for k in 1..cam.len() {
                 let x = &cam[..=k];
@@ -410,6 +610,10 @@ fn mis_weights_of_all_strategies_sum_to_one() {
         }
     }
     eprintln!(
+        "recursive weights vs pbrt's: worst relative difference {:.2e} on full paths (negative control, MIS quantities of the balance heuristic used for power: {:.2e}); on the walks' subpaths {} of {} strategies differ by > 1e-3, worst {:.2e}",
+        out.worst_reference, out.worst_reference_wrong_heuristic, out.walk_off, out.walk_checked, out.worst_walk
+    );
+    eprintln!(
         "{} paths ({} with a specular vertex, {} from point lights, {} from the environment): worst |sum - 1| = {:.2e}, worst deviation from Veach's formula = {:.2e}; walk densities off by > 1e-3: {} (> 1e-2: {}) of {} (negative control, the other side's, > 1e-2: {} of {}); without the s = 1 density substitution: worst |sum - 1| = {:.3}",
         out.paths, out.with_delta, out.point_light, out.environment, out.worst_sum, out.worst_formula, out.densities_off, out.densities_far_off, out.densities_checked, out.swapped_off, out.swapped_checked, out.worst_sum_without_substitution
     );
@@ -426,6 +630,19 @@ fn mis_weights_of_all_strategies_sum_to_one() {
     );
     assert!(out.worst_sum < 1e-3, "weights do not sum to one: {}", out.worst_sum);
     assert!(out.worst_formula < 1e-3, "weights differ from Veach's formula: {}", out.worst_formula);
+    assert!(out.worst_reference < 1e-4, "weights differ from pbrt's: {}", out.worst_reference);
+    assert!(
+        out.walk_checked > 10_000 && out.walk_off * 1000 < out.walk_checked && out.worst_walk < 1e-2,
+        "on the walks' subpaths, weights differ from pbrt's: {} of {} by > 1e-3, worst {}",
+        out.walk_off,
+        out.walk_checked,
+        out.worst_walk
+    );
+    assert!(
+        out.worst_reference_wrong_heuristic > 1e-2,
+        "the negative control did not fail: {}",
+        out.worst_reference_wrong_heuristic
+    );
     assert!(
         out.worst_sum_without_substitution > 1e-2,
         "the negative control did not fail: {}",

@@ -53,7 +53,7 @@ impl Integrator for LightWithoutCos {
             let cos_camera = scene.camera.cos_theta(-cs.wi);
             let cam = Vertex::camera(scene, SampledSpectrum::splat(cs.we * cos_camera / cs.pdf_w));
             let cos = if v.is_on_surface() { cs.wi.dot(v.si.frame.n).abs() } else { 1.0 };
-            let l = v.beta * v.f(scene, &cam, lambda, TransportMode::Importance) * cam.beta * cos;
+            let l = v.beta * v.scatter(scene, cs.wi, lambda, TransportMode::Importance).f * cam.beta * cos;
             if !l.is_black() && scene.unoccluded(v.si.point(), cam.si.point()) {
                 ws.splats.push(Splat { raster: cs.raster, l });
             }

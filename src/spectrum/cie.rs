@@ -37,7 +37,7 @@ static CMF: LazyLock<Vec<[f32; 3]>> = LazyLock::new(|| {
 pub fn to_xyz(l: SampledSpectrum, lambda: &SampledWavelengths) -> Vec3 {
     let w = l.safe_div(SampledSpectrum(lambda.pdf)).0 / (4.0 * CIE_Y_INTEGRAL);
     let cmf = |i: u32| CMF.get(i as usize).map_or(Vec3::ZERO, |c| Vec3::from_array(*c));
-    let [x, y, z, zz] = super::dense_index4(lambda.lambda).map(cmf);
+    let [x, y, z, zz] = lambda.dense.map(cmf);
     let xs = Vec4::new(x.x, y.x, z.x, zz.x).dot(w);
     let ys = Vec4::new(x.y, y.y, z.y, zz.y).dot(w);
     let zs = Vec4::new(x.z, y.z, z.z, zz.z).dot(w);

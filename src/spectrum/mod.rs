@@ -86,12 +86,9 @@ impl Spectrum {
         match self {
             Spectrum::Constant(c) => SampledSpectrum::splat(*c),
             Spectrum::Dense(t) => {
-                let i = dense_index4(lambda.lambda);
-                if i.iter().all(|&i| (i as usize) < N_DENSE) {
-                    SampledSpectrum::new(t[i[0] as usize], t[i[1] as usize], t[i[2] as usize], t[i[3] as usize])
-                } else {
-                    SampledSpectrum(lambda.lambda.map(|l| self.eval(l)))
-                }
+                let at = |i: u32| t.get(i as usize).copied().unwrap_or(0.0);
+                let [a, b, c, d] = lambda.dense;
+                SampledSpectrum::new(at(a), at(b), at(c), at(d))
             }
         }
     }

@@ -125,8 +125,14 @@ impl Mul<SampledSpectrum> for f32 {
 /// and the plain average of L(l_i)/p(l_i) is unbiased (Wilkie et al. 2014).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SampledWavelengths {
+    /// The wavelengths (nm). Only `sample_visible` sets them, as `dense`
+    /// must follow them.
     pub lambda: Vec4,
     pub pdf: Vec4,
+    /// Each wavelength's index in the 1 nm tables of dense spectra
+    /// (`dense_index4`; N_DENSE or more outside them), found once per path
+    /// instead of at every `Spectrum::sample`.
+    pub(super) dense: [u32; 4],
 }
 
 impl SampledWavelengths {
@@ -142,7 +148,8 @@ impl SampledWavelengths {
         let atanh = 0.5 * ln(((Vec4::ONE + x) / (Vec4::ONE - x)).max(Vec4::splat(f32::MIN_POSITIVE)));
         let lambda = Vec4::splat(538.0) - Vec4::splat(138.888_89) * atanh;
         let pdf = Vec4::splat(0.003_939_804) * (Vec4::ONE - x * x);
-        Self { lambda, pdf }
+        let dense = super::dense_index4(lambda);
+        Self { lambda, pdf, dense }
     }
 
     /// Keep only the hero wavelength (after a dispersive event): the
