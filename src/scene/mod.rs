@@ -408,3 +408,53 @@ impl Scene {
             + shading
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::materials::Diffuse;
+
+    /// Meshes of every kind (flat, smooth, emissive, empty, with a
+    /// degenerate triangle): `triangle` gives back what went in, and the
+    /// geometry (BVH included) stays within the memory budget of issue 10.
+    #[test]
+    fn triangles_round_trip_and_geometry_is_compact() {
+        let camera = Camera::new(Vec3A::new(0.0, 0.0, -5.0), Vec3A::ZERO, Vec3A::Y, 40.0, 8, 8);
+        let mut b = SceneBuilder::new(camera);
+        let grey = b.material("grey", Bsdf::Diffuse(Diffuse::new(Spectrum::Constant(0.5))));
+        let white = b.material("white", Bsdf::Diffuse(Diffuse::new(Spectrum::Constant(0.8))));
+        let quad = [Vec3A::new(-2., -1., 2.), Vec3A::new(2., -1., 2.), Vec3A::new(2., 1., 2.), Vec3A::new(-2., 1., 2.)];
+        let p = Vec3A::new(0.5, 0.5, 0.5);
+        let degenerate = Mesh { positions: vec![p, p, Vec3A::ONE], normals: Vec::new(), indices: vec![[0, 1, 2]] };
+        let meshes = [
+            (Mesh::default(), grey, None),
+            (Mesh::sphere(Vec3A::ZERO, 1.0, 6, false), grey, None),
+            (Mesh::default(), white, None),
+            (Mesh::sphere(Vec3A::X * 3.0, 0.5, 1, true), white, None),
+            (degenerate, grey, Some((Spectrum::Constant(1.0), false))),
+            (Mesh::quad(quad), white, Some((Spectrum::Constant(1.0), false))),
+        ];
+        let mut want = Vec::new();
+        for (k, (mesh, material, emission)) in meshes.iter().enumerate() {
+            for (t, idx) in mesh.indices.iter().enumerate() {
+                let ns = (!mesh.normals.is_empty()).then(|| idx.map(|i| mesh.normals[i as usize]));
+                want.push((idx.map(|i| mesh.positions[i as usize]), ns, *material, emission.is_some() && k == 5, t));
+            }
+            b.mesh(&format!("mesh {k}"), mesh.clone(), *material, emission.clone());
+        }
+        let scene = b.build();
+        assert_eq!(scene.triangle_count(), want.len());
+        assert_eq!(scene.lights.len(), 2);
+        for (i, (v, ns, material, emits, t)) in want.iter().enumerate() {
+            let got = scene.triangle(i);
+            assert_eq!((got.0, got.1, got.2), (*v, *ns, *material), "triangle {i}");
+            assert_eq!(got.3, emits.then_some(*t as u32), "triangle {i}");
+        }
+        let per_triangle = scene.geometry_bytes() as f64 / scene.triangle_count() as f64;
+        assert!(per_triangle < 64.0, "{per_triangle} bytes per triangle");
+        // A ray down onto the quad hits it with its material and light.
+        let si = scene.intersect(&Ray::new(Vec3A::new(1.5, 0.5, -1.0), Vec3A::Z)).expect("hit");
+        assert_eq!((si.material, si.light), (white, Some(0)));
+        assert_eq!(si.ng, Vec3A::Z);
+    }
+}
