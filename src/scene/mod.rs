@@ -293,7 +293,9 @@ impl Scene {
         let k = (hit.prim - m.start) as usize;
         let b0 = 1.0 - hit.b1 - hit.b2;
         let p = v[0] * b0 + v[1] * hit.b1 + v[2] * hit.b2;
-        let (ng, _) = normal_and_area(&v);
+        // What `normal_and_area` gives a triangle the BVH holds (non-zero,
+        // finite area), without the area.
+        let ng = (v[1] - v[0]).cross(v[2] - v[0]).normalize();
         let mut ns = match &m.shading {
             Some((indices, normals)) => {
                 let n = indices[k].map(|i| normals[i as usize]);
