@@ -27,9 +27,9 @@ use crate::geometry::{gamma, Ray};
 use glam::{DVec3, Vec3A, Vec3Swizzles, Vec4};
 use obvhs::{
     aabb::Aabb,
-    bvh2::reinsertion::ReinsertionOptimizer,
+    bvh2::{node::Bvh2Node, reinsertion::ReinsertionOptimizer, Bvh2},
     cwbvh::{bvh2_to_cwbvh::bvh2_to_cwbvh, node::CwBvhNode, CwBvh},
-    ploc::PlocBuilder,
+    ploc::{PlocBuilder, PlocSearchDistance},
     BvhBuildParams,
 };
 use rayon::prelude::*;
@@ -49,9 +49,13 @@ pub struct Accel {
     /// Triangles in BVH slot order: `tris[s]` is input triangle
     /// `bvh.primitive_indices[s]`.
     tris: Vec<SoaTriangle>,
+    /// Input index -> slot in `tris`; `NO_SLOT` for a degenerate triangle.
+    slots: Vec<u32>,
     /// Number of input triangles, degenerate ones included.
     input_len: usize,
 }
+
+const NO_SLOT: u32 = u32::MAX;
 
 /// Build preset: PLOC with search radius 1 at the top levels and a little
 /// reinsertion. `fast_build` takes about 1 s of CPU time (both threads
@@ -61,40 +65,120 @@ const BUILD_PARAMS: BvhBuildParams = BvhBuildParams::fast_build();
 
 impl Accel {
     pub fn build(tris: &[[Vec3A; 3]]) -> Self {
-        // `kept[k]` is the input index of the k-th non-degenerate triangle.
-        // obvhs gets positions 0..k, not input indices: with a single
-        // primitive its PLOC skips clustering and stores the index as a
-        // position (0.4.0 then panics in bvh2_to_cwbvh).
-        // (rayon's collect and unzip keep the input order.)
-        let (aabbs, kept): (Vec<Aabb>, Vec<u32>) = tris
-            .par_iter()
-            .enumerate()
-            .filter(|(_, tri)| !is_degenerate(tri))
-            .map(|(i, tri)| {
-                let aabb = Aabb::new(tri[0].min(tri[1]).min(tri[2]), tri[0].max(tri[1]).max(tri[2]));
-                (aabb, i as u32)
-            })
-            .unzip();
-        let mut bvh = if aabbs.is_empty() {
+        Self::build_with(tris.len(), |i| tris[i])
+    }
+
+    /// Builds over `len` triangles given by `tri(i)` (called a few times per
+    /// triangle, from several threads), so a caller with indexed meshes needs
+    /// no `[[Vec3A; 3]]` copy of its vertices.
+    ///
+    /// Memory: the temporaries are freed as soon as the next stage no longer
+    /// needs them (PLOC's node arrays before reinsertion, the BVH2 before the
+    /// triangles are copied in slot order), and the leaves are written
+    /// straight into PLOC's node array, without an AABB array in between.
+    pub fn build_with<F>(len: usize, tri: F) -> Self
+    where
+        F: Fn(usize) -> [Vec3A; 3] + Sync,
+    {
+        assert!(len < u32::MAX as usize, "{len} triangles: at most 2^32 - 2");
+        // `kept[k]` is the input index of the k-th non-degenerate triangle;
+        // None when all are kept. obvhs gets positions 0..k, not input
+        // indices: with a single primitive its PLOC skips clustering and
+        // stores the index as a position (0.4.0 then panics in bvh2_to_cwbvh).
+        let degenerate = (0..len).into_par_iter().filter(|&i| is_degenerate(&tri(i))).count();
+        let kept: Option<Vec<u32>> = (degenerate > 0)
+            .then(|| (0..len as u32).into_par_iter().filter(|&i| !is_degenerate(&tri(i as usize))).collect());
+        let input = |k: usize| kept.as_ref().map_or(k, |kept| kept[k] as usize);
+        let n = len - degenerate;
+        let mut bvh = if n == 0 {
             CwBvh::default()
         } else {
             // obvhs's `build_cwbvh` minus its debug-build validate(), which
-            // takes minutes on a million triangles in unoptimised test builds.
+            // takes minutes on a million triangles in unoptimised test
+            // builds, and with PLOC's leaves made here (as its `build_ploc`
+            // makes them from an AABB array; the total box is a min / max,
+            // exact in any order, so the BVH is the same).
             let p = BUILD_PARAMS;
-            let mut bvh2 = PlocBuilder::with_capacity(aabbs.len()).build(
-                p.ploc_search_distance,
-                &aabbs,
-                (0..aabbs.len() as u32).collect(),
-                p.sort_precision,
-                p.search_depth_threshold,
-            );
+            let mut ploc = PlocBuilder::new();
+            ploc.current_nodes = (0..n)
+                .into_par_iter()
+                .map(|k| {
+                    let t = tri(input(k));
+                    Bvh2Node::new(Aabb::new(t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2])), 1, k as u32)
+                })
+                .collect();
+            let total = ploc
+                .current_nodes
+                .par_iter()
+                .fold(Aabb::empty, |a, node| a.union(node.aabb()))
+                .reduce(Aabb::empty, |a, b| a.union(&b));
+            let mut bvh2 = Bvh2::default();
+            bvh2.reset_for_reuse(n, Some((0..n as u32).collect()));
+            let (precision, depth) = (p.sort_precision, p.search_depth_threshold);
+            match p.ploc_search_distance {
+                PlocSearchDistance::Minimum => {
+                    ploc.build_ploc_from_leaves::<1, false>(&mut bvh2, total, precision, depth)
+                }
+                PlocSearchDistance::VeryLow => {
+                    ploc.build_ploc_from_leaves::<2, false>(&mut bvh2, total, precision, depth)
+                }
+                PlocSearchDistance::Low => ploc.build_ploc_from_leaves::<6, false>(&mut bvh2, total, precision, depth),
+                PlocSearchDistance::Medium => {
+                    ploc.build_ploc_from_leaves::<14, false>(&mut bvh2, total, precision, depth)
+                }
+                PlocSearchDistance::High => {
+                    ploc.build_ploc_from_leaves::<24, false>(&mut bvh2, total, precision, depth)
+                }
+                PlocSearchDistance::VeryHigh => {
+                    ploc.build_ploc_from_leaves::<32, false>(&mut bvh2, total, precision, depth)
+                }
+            }
+            drop(ploc);
             ReinsertionOptimizer::default().run(&mut bvh2, p.reinsertion_batch_ratio, None);
-            bvh2_to_cwbvh(&bvh2, p.max_prims_per_leaf.clamp(1, 3), true, false)
+            // Reinsertion's parent links; the conversion does not use them.
+            bvh2.parents = Vec::new();
+            bvh2.primitives_to_nodes = Vec::new();
+            let mut cwbvh = bvh2_to_cwbvh(&bvh2, p.max_prims_per_leaf.clamp(1, 3), true, false);
+            drop(bvh2);
+            // Reserved for one node per primitive; a few percent of that is used.
+            cwbvh.nodes.shrink_to_fit();
+            cwbvh
         };
         // From here on primitive_indices maps a slot to the input index.
-        bvh.primitive_indices.par_iter_mut().for_each(|i| *i = kept[*i as usize]);
-        let sorted = bvh.primitive_indices.par_iter().map(|&i| SoaTriangle::new(&tris[i as usize])).collect();
-        Self { bvh, tris: sorted, input_len: tris.len() }
+        if let Some(kept) = &kept {
+            bvh.primitive_indices.par_iter_mut().for_each(|i| *i = kept[*i as usize]);
+        }
+        drop(kept);
+        let sorted: Vec<SoaTriangle> =
+            bvh.primitive_indices.par_iter().map(|&i| SoaTriangle::new(&tri(i as usize))).collect();
+        let mut slots = vec![NO_SLOT; len];
+        for (s, &i) in bvh.primitive_indices.iter().enumerate() {
+            slots[i as usize] = s as u32;
+        }
+        Self { bvh, tris: sorted, slots, input_len: len }
+    }
+
+    /// The vertices of input triangle `prim` as given to `build` (bit for
+    /// bit), or None for a degenerate one (not stored).
+    #[inline]
+    pub fn triangle(&self, prim: u32) -> Option<[Vec3A; 3]> {
+        let s = *self.slots.get(prim as usize)?;
+        (s != NO_SLOT).then(|| self.tris[s as usize].vertices())
+    }
+
+    /// Whether input triangle `prim` is in the BVH (not degenerate).
+    #[inline]
+    pub fn contains(&self, prim: u32) -> bool {
+        self.slots.get(prim as usize).is_some_and(|&s| s != NO_SLOT)
+    }
+
+    /// Heap bytes held (nodes, triangles, index maps), for memory reports.
+    pub fn heap_bytes(&self) -> usize {
+        use std::mem::size_of;
+        self.bvh.nodes.capacity() * size_of::<CwBvhNode>()
+            + self.bvh.primitive_indices.capacity() * 4
+            + self.tris.capacity() * size_of::<SoaTriangle>()
+            + self.slots.capacity() * 4
     }
 
     /// Number of input triangles (degenerate ones included, though they are
@@ -272,6 +356,13 @@ impl SoaTriangle {
             }
         }
         Self { c }
+    }
+
+    /// The vertices back, bit for bit.
+    #[inline(always)]
+    fn vertices(&self) -> [Vec3A; 3] {
+        let c = &self.c;
+        [0, 1, 2].map(|j| Vec3A::new(c[j], c[3 + j], c[6 + j]))
     }
 
     #[inline(always)]

@@ -53,15 +53,36 @@ pub struct RenderDefaults {
 
 const NO_LIGHT: u32 = u32::MAX;
 
-#[derive(Clone, Debug)]
-struct TriangleRecord {
-    v: [Vec3A; 3],
-    /// Geometric normal from the winding: (v1 - v0) x (v2 - v0), normalised.
-    ng: Vec3A,
-    /// Per-vertex shading normals, if the mesh has them.
-    ns: Option<[Vec3A; 3]>,
+/// What shading needs of one mesh beyond its vertex positions (those are
+/// kept once, in the BVH: `Accel::triangle`). The mesh's triangles are
+/// `start..start + len` in the scene's numbering, which is the BVH's input
+/// order and the order of `SceneBuilder::mesh` calls.
+#[derive(Debug)]
+struct MeshRecord {
+    start: u32,
     material: u32,
-    light: u32,
+    /// Per-triangle area light (`NO_LIGHT` for a zero-area triangle) if the
+    /// mesh emits; empty otherwise.
+    lights: Vec<u32>,
+    /// Vertex indices and per-vertex shading normals, if the mesh has normals.
+    shading: Option<(Vec<[u32; 3]>, Vec<Vec3A>)>,
+}
+
+/// Geometric normal from the winding, normalize((v1 - v0) x (v2 - v0)), and
+/// the area; +z for a zero-area or non-finite triangle.
+#[inline]
+fn normal_and_area(v: &[Vec3A; 3]) -> (Vec3A, f32) {
+    let cross = (v[1] - v[0]).cross(v[2] - v[0]);
+    let area = 0.5 * cross.length();
+    let ng = if area > 0.0 && area.is_finite() { cross.normalize() } else { Vec3A::Z };
+    (ng, area)
+}
+
+/// Index of the mesh holding triangle `prim`: the last one starting at or
+/// before it (an empty mesh shares its start with the next one).
+#[inline]
+fn mesh_index(meshes: &[MeshRecord], prim: u32) -> usize {
+    meshes.partition_point(|m| m.start <= prim) - 1
 }
 
 /// A ray's closest hit, with everything shading needs.
@@ -113,7 +134,10 @@ impl SurfaceInteraction {
 pub struct Scene {
     pub camera: Camera,
     pub accel: Accel,
-    tris: Vec<TriangleRecord>,
+    meshes: Vec<MeshRecord>,
+    /// Vertices of the degenerate triangles, which the BVH does not store
+    /// (never hit; kept for `triangle`), sorted by triangle index.
+    degenerate: Vec<(u32, [Vec3A; 3])>,
     pub materials: Vec<Material>,
     pub lights: Vec<Light>,
     /// For each light, the name of the object or light entry it came from.
@@ -179,38 +203,53 @@ impl SceneBuilder {
     }
 
     pub fn build(self) -> Scene {
-        let mut tris = Vec::new();
         let mut lights = Vec::new();
         let mut light_names = Vec::new();
+        let mut records = Vec::with_capacity(self.meshes.len());
+        let mut start = 0u32;
         for (mesh, material, emission, name) in &self.meshes {
-            for (k, idx) in mesh.indices.iter().enumerate() {
-                let v = idx.map(|i| mesh.positions[i as usize]);
-                let cross = (v[1] - v[0]).cross(v[2] - v[0]);
-                let area = 0.5 * cross.length();
-                let ng = if area > 0.0 && area.is_finite() { cross.normalize() } else { Vec3A::Z };
-                let ns = (!mesh.normals.is_empty()).then(|| idx.map(|i| mesh.normals[i as usize]));
-                let mut light = NO_LIGHT;
-                if let Some((le, two_sided)) = emission {
+            let mut mesh_lights = Vec::new();
+            if let Some((le, two_sided)) = emission {
+                mesh_lights.reserve_exact(mesh.len());
+                for (k, idx) in mesh.indices.iter().enumerate() {
+                    let v = idx.map(|i| mesh.positions[i as usize]);
+                    let (ng, area) = normal_and_area(&v);
+                    let mut light = NO_LIGHT;
                     if area > 0.0 && area.is_finite() {
                         light = lights.len() as u32;
-                        let prim = tris.len() as u32;
                         lights.push(Light::Area(AreaLight {
                             v,
                             n: ng,
                             area,
                             le: le.clone(),
                             two_sided: *two_sided,
-                            prim,
+                            prim: start + k as u32,
                         }));
                         light_names.push(format!("{name} (triangle {k})"));
                     }
+                    mesh_lights.push(light);
                 }
-                tris.push(TriangleRecord { v, ng, ns, material: *material, light });
+            }
+            records.push(MeshRecord { start, material: *material, lights: mesh_lights, shading: None });
+            start =
+                u32::try_from(mesh.len()).ok().and_then(|n| start.checked_add(n)).expect("at most 2^32 - 2 triangles");
+        }
+        let vertices = |i: usize| {
+            let m = mesh_index(&records, i as u32);
+            let mesh = &self.meshes[m].0;
+            mesh.indices[i - records[m].start as usize].map(|j| mesh.positions[j as usize])
+        };
+        let accel = Accel::build_with(start as usize, vertices);
+        let degenerate: Vec<(u32, [Vec3A; 3])> =
+            (0..start).filter(|&i| !accel.contains(i)).map(|i| (i, vertices(i as usize))).collect();
+        // Positions now live in the BVH; keep indices and normals of the
+        // meshes that have normals, drop the rest.
+        for (record, (mesh, ..)) in records.iter_mut().zip(self.meshes) {
+            if !mesh.normals.is_empty() {
+                record.shading = Some((mesh.indices, mesh.normals));
             }
         }
-        let positions: Vec<[Vec3A; 3]> = tris.iter().map(|t| t.v).collect();
-        let accel = Accel::build(&positions);
-        let (lo, hi) = if tris.is_empty() { (Vec3A::ZERO, Vec3A::ZERO) } else { accel.bounds() };
+        let (lo, hi) = accel.bounds();
         let (lo, hi) = (lo.min(self.camera.position), hi.max(self.camera.position));
         let center = (lo + hi) * 0.5;
         let radius = ((hi - lo).length() * 0.5).max(1e-3);
@@ -229,7 +268,8 @@ impl SceneBuilder {
         Scene {
             camera: self.camera,
             accel,
-            tris,
+            meshes: records,
+            degenerate,
             materials: self.materials,
             lights,
             light_names,
@@ -248,12 +288,19 @@ impl Scene {
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceInteraction> {
         count_ray();
         let hit = self.accel.intersect(ray, f32::INFINITY)?;
-        let tri = &self.tris[hit.prim as usize];
+        let v = self.accel.triangle(hit.prim)?;
+        let m = &self.meshes[mesh_index(&self.meshes, hit.prim)];
+        let k = (hit.prim - m.start) as usize;
         let b0 = 1.0 - hit.b1 - hit.b2;
-        let p = tri.v[0] * b0 + tri.v[1] * hit.b1 + tri.v[2] * hit.b2;
-        let ng = tri.ng;
-        let mut ns = match tri.ns {
-            Some(n) => (n[0] * b0 + n[1] * hit.b1 + n[2] * hit.b2).normalize_or_zero(),
+        let p = v[0] * b0 + v[1] * hit.b1 + v[2] * hit.b2;
+        // What `normal_and_area` gives a triangle the BVH holds (non-zero,
+        // finite area), without the area.
+        let ng = (v[1] - v[0]).cross(v[2] - v[0]).normalize();
+        let mut ns = match &m.shading {
+            Some((indices, normals)) => {
+                let n = indices[k].map(|i| normals[i as usize]);
+                (n[0] * b0 + n[1] * hit.b1 + n[2] * hit.b2).normalize_or_zero()
+            }
             None => ng,
         };
         if ns == Vec3A::ZERO || !ns.is_finite() {
@@ -263,13 +310,13 @@ impl Scene {
         }
         Some(SurfaceInteraction {
             p,
-            p_error: barycentric_error(&tri.v, b0, hit.b1, hit.b2),
+            p_error: barycentric_error(&v, b0, hit.b1, hit.b2),
             t: hit.t,
             ng,
             frame: Frame::from_normal(ns),
             wo: -ray.d,
-            material: tri.material,
-            light: (tri.light != NO_LIGHT).then_some(tri.light),
+            material: m.material,
+            light: m.lights.get(k).copied().filter(|&l| l != NO_LIGHT),
         })
     }
 
@@ -330,13 +377,86 @@ impl Scene {
     }
 
     pub fn triangle_count(&self) -> usize {
-        self.tris.len()
+        self.accel.len()
     }
 
     /// Triangle `i` as built (scene exporters): vertices in winding order,
     /// per-vertex shading normals, material, area light.
     pub fn triangle(&self, i: usize) -> ([Vec3A; 3], Option<[Vec3A; 3]>, u32, Option<u32>) {
-        let t = &self.tris[i];
-        (t.v, t.ns, t.material, (t.light != NO_LIGHT).then_some(t.light))
+        let prim = i as u32;
+        let v = self.accel.triangle(prim).unwrap_or_else(|| {
+            let d = self.degenerate.binary_search_by_key(&prim, |d| d.0).expect("triangle index in range");
+            self.degenerate[d].1
+        });
+        let m = &self.meshes[mesh_index(&self.meshes, prim)];
+        let k = i - m.start as usize;
+        let ns = m.shading.as_ref().map(|(indices, normals)| indices[k].map(|j| normals[j as usize]));
+        (v, ns, m.material, m.lights.get(k).copied().filter(|&l| l != NO_LIGHT))
+    }
+
+    /// Heap bytes of the geometry (BVH, triangles, shading data), for
+    /// memory reports.
+    pub fn geometry_bytes(&self) -> usize {
+        let shading: usize = self
+            .meshes
+            .iter()
+            .map(|m| {
+                m.lights.capacity() * 4 + m.shading.as_ref().map_or(0, |(i, n)| i.capacity() * 12 + n.capacity() * 16)
+            })
+            .sum();
+        self.accel.heap_bytes()
+            + self.meshes.capacity() * std::mem::size_of::<MeshRecord>()
+            + self.degenerate.capacity() * std::mem::size_of::<(u32, [Vec3A; 3])>()
+            + shading
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::materials::Diffuse;
+
+    /// Meshes of every kind (flat, smooth, emissive, empty, with a
+    /// degenerate triangle): `triangle` gives back what went in, and the
+    /// geometry (BVH included) stays within the memory budget of issue 10.
+    #[test]
+    fn triangles_round_trip_and_geometry_is_compact() {
+        let camera = Camera::new(Vec3A::new(0.0, 0.0, -5.0), Vec3A::ZERO, Vec3A::Y, 40.0, 8, 8);
+        let mut b = SceneBuilder::new(camera);
+        let grey = b.material("grey", Bsdf::Diffuse(Diffuse::new(Spectrum::Constant(0.5))));
+        let white = b.material("white", Bsdf::Diffuse(Diffuse::new(Spectrum::Constant(0.8))));
+        let quad = [Vec3A::new(-2., -1., 2.), Vec3A::new(2., -1., 2.), Vec3A::new(2., 1., 2.), Vec3A::new(-2., 1., 2.)];
+        let p = Vec3A::new(0.5, 0.5, 0.5);
+        let degenerate = Mesh { positions: vec![p, p, Vec3A::ONE], normals: Vec::new(), indices: vec![[0, 1, 2]] };
+        let meshes = [
+            (Mesh::default(), grey, None),
+            (Mesh::sphere(Vec3A::ZERO, 1.0, 6, false), grey, None),
+            (Mesh::default(), white, None),
+            (Mesh::sphere(Vec3A::X * 3.0, 0.5, 1, true), white, None),
+            (degenerate, grey, Some((Spectrum::Constant(1.0), false))),
+            (Mesh::quad(quad), white, Some((Spectrum::Constant(1.0), false))),
+        ];
+        let mut want = Vec::new();
+        for (k, (mesh, material, emission)) in meshes.iter().enumerate() {
+            for (t, idx) in mesh.indices.iter().enumerate() {
+                let ns = (!mesh.normals.is_empty()).then(|| idx.map(|i| mesh.normals[i as usize]));
+                want.push((idx.map(|i| mesh.positions[i as usize]), ns, *material, emission.is_some() && k == 5, t));
+            }
+            b.mesh(&format!("mesh {k}"), mesh.clone(), *material, emission.clone());
+        }
+        let scene = b.build();
+        assert_eq!(scene.triangle_count(), want.len());
+        assert_eq!(scene.lights.len(), 2);
+        for (i, (v, ns, material, emits, t)) in want.iter().enumerate() {
+            let got = scene.triangle(i);
+            assert_eq!((got.0, got.1, got.2), (*v, *ns, *material), "triangle {i}");
+            assert_eq!(got.3, emits.then_some(*t as u32), "triangle {i}");
+        }
+        let per_triangle = scene.geometry_bytes() as f64 / scene.triangle_count() as f64;
+        assert!(per_triangle < 64.0, "{per_triangle} bytes per triangle");
+        // A ray down onto the quad hits it with its material and light.
+        let si = scene.intersect(&Ray::new(Vec3A::new(1.5, 0.5, -1.0), Vec3A::Z)).expect("hit");
+        assert_eq!((si.material, si.light), (white, Some(0)));
+        assert_eq!(si.ng, Vec3A::Z);
     }
 }
