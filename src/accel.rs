@@ -34,14 +34,17 @@ use obvhs::{
 };
 use rayon::prelude::*;
 
-/// A ray-triangle hit: distance, the triangle's index in the input order, and
-/// the barycentrics of its second and third vertices.
+/// A ray-triangle hit: distance, the triangle's index in the input order, the
+/// barycentrics of its second and third vertices, and its vertices (as given
+/// to `build`, bit for bit: read from the slot the traversal found, so a hit
+/// needs no lookup by input index).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TriangleHit {
     pub t: f32,
     pub prim: u32,
     pub b1: f32,
     pub b2: f32,
+    pub v: [Vec3A; 3],
 }
 
 pub struct Accel {
@@ -213,7 +216,13 @@ impl Accel {
             }
             false
         });
-        best.map(|(slot, b1, b2)| TriangleHit { t: best_t, prim: self.bvh.primitive_indices[slot as usize], b1, b2 })
+        best.map(|(slot, b1, b2)| TriangleHit {
+            t: best_t,
+            prim: self.bvh.primitive_indices[slot as usize],
+            b1,
+            b2,
+            v: self.tris[slot as usize].vertices(),
+        })
     }
 
     /// Whether anything blocks the ray in (0, t_max); stops at the first hit.

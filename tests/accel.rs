@@ -68,7 +68,7 @@ fn brute(tris: &[[Vec3A; 3]], ray: &Ray, t_max: f32) -> Option<TriangleHit> {
     for (i, tri) in tris.iter().enumerate() {
         let tm = best.map_or(t_max, |b| b.t);
         if let Some((t, b1, b2)) = intersect_triangle(ray, tri, tm) {
-            best = Some(TriangleHit { t, prim: i as u32, b1, b2 });
+            best = Some(TriangleHit { t, prim: i as u32, b1, b2, v: *tri });
         }
     }
     best

@@ -288,7 +288,7 @@ impl Scene {
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceInteraction> {
         count_ray();
         let hit = self.accel.intersect(ray, f32::INFINITY)?;
-        let v = self.accel.triangle(hit.prim)?;
+        let v = hit.v;
         let m = &self.meshes[mesh_index(&self.meshes, hit.prim)];
         let k = (hit.prim - m.start) as usize;
         let b0 = 1.0 - hit.b1 - hit.b2;
