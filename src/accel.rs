@@ -389,10 +389,10 @@ struct PreparedRay {
     /// swapped if d[kz] < 0 so the projected winding (sign of det) is kept.
     k: [usize; 3],
     /// o permuted: (o[kx], o[ky], o[kz]).
-    o_k: [f32; 3],
+    o_k: Vec3A,
     /// Shear constants Sx = d[kx] / d[kz], Sy = d[ky] / d[kz], Sz = 1 / d[kz]:
     /// in the sheared space the ray is +z through the origin.
-    s: [f32; 3],
+    s: Vec3A,
     /// 1/d, with zero components replaced by +-1e-20 so no 0 * inf = NaN can
     /// silently drop a box (a NaN compare is false).
     inv: Vec3A,
@@ -407,21 +407,27 @@ impl PreparedRay {
         if !(ray.o.is_finite() && d.is_finite() && d.length_squared() > 0.0) {
             return None;
         }
-        // kz: the first axis of largest |d|; (kx, ky) the next two cyclically.
+        // kz: the first axis of largest |d|; (kx, ky) the next two
+        // cyclically, as a swizzle that puts (kx, ky, kz) in lanes (x, y, z).
         let ad = d.abs();
         let kz = ad.cmpeq(Vec3A::splat(ad.max_element())).bitmask().trailing_zeros() as usize;
-        let (mut kx, mut ky) = ([1, 2, 0][kz], [2, 0, 1][kz]);
-        if d[kz] < 0.0 {
-            std::mem::swap(&mut kx, &mut ky);
+        let (mut k, mut d_k, mut o_k) = match kz {
+            0 => ([1, 2, 0], d.yzx(), ray.o.yzx()),
+            1 => ([2, 0, 1], d.zxy(), ray.o.zxy()),
+            _ => ([0, 1, 2], d, ray.o),
+        };
+        if d_k.z < 0.0 {
+            k.swap(0, 1);
+            (d_k, o_k) = (d_k.yxz(), o_k.yxz());
         }
-        let sz = 1.0 / d[kz];
+        let sz = 1.0 / d_k.z;
         let dc = d.abs().max(Vec3A::splat(1e-20)).copysign(d);
         let inv = Vec3A::ONE / dc;
         Some(Self {
             o: ray.o,
-            k: [kx, ky, kz],
-            o_k: [ray.o[kx], ray.o[ky], ray.o[kz]],
-            s: [d[kx] * sz, d[ky] * sz, sz],
+            k,
+            o_k,
+            s: Vec3A::new(d_k.x * sz, d_k.y * sz, sz),
             inv,
             abs_inv: inv.abs(),
             neg: [inv.x < 0.0, inv.y < 0.0, inv.z < 0.0],
@@ -436,12 +442,13 @@ impl PreparedRay {
     /// on the edge cannot miss both.
     #[inline(always)]
     fn intersect(&self, tri: &SoaTriangle, t_max: f32) -> Option<(f32, f32, f32)> {
-        let [kx, ky, kz] = self.k;
-        let [sx, sy, sz] = self.s;
+        // (`min` tells the compiler the rows are in bounds.)
+        let [kx, ky, kz] = self.k.map(|k| k.min(2));
+        let (sx, sy, sz) = (self.s.x, self.s.y, self.s.z);
         // Lanes (a, b, c): the vertices relative to o, then sheared.
-        let z = tri.row(kz) - Vec3A::splat(self.o_k[2]);
-        let x = (tri.row(kx) - Vec3A::splat(self.o_k[0])) - Vec3A::splat(sx) * z;
-        let y = (tri.row(ky) - Vec3A::splat(self.o_k[1])) - Vec3A::splat(sy) * z;
+        let z = tri.row(kz) - Vec3A::splat(self.o_k.z);
+        let x = (tri.row(kx) - Vec3A::splat(self.o_k.x)) - Vec3A::splat(sx) * z;
+        let y = (tri.row(ky) - Vec3A::splat(self.o_k.y)) - Vec3A::splat(sy) * z;
         // Lanes (U, V, W) = (cx by - cy bx, ax cy - ay cx, bx ay - by ax).
         let mut uvw = x.zxy() * y.yzx() - y.zxy() * x.yzx();
         // Exactly zero means the ray is (in f32) on an edge; the f32 products
