@@ -46,8 +46,7 @@ pub fn collapse(bvh2: &Bvh2) -> CwBvh {
     // node's inner children are contiguous and follow their parent's block.
     let mut stack = vec![(0u32, 0u32)];
     while let Some((wide, node)) = stack.pop() {
-        let first_inner = out.emit(wide as usize, node as usize);
-        stack.extend(first_inner.iter().rev().copied());
+        out.emit(wide as usize, node as usize, &mut stack);
     }
     out.nodes.shrink_to_fit();
     CwBvh {
@@ -65,15 +64,29 @@ struct Collapse<'a> {
     primitive_indices: Vec<u32>,
 }
 
-/// Up to 8 (wide node, BVH2 node) pairs still to emit.
-type InnerChildren = Vec<(u32, u32)>;
+/// A child of the wide node being built: a BVH2 node, whether it becomes a
+/// leaf child (at most `MAX_LEAF_PRIMS` primitives under it) and its area.
+#[derive(Clone, Copy)]
+struct Child {
+    node: u32,
+    leaf: bool,
+    half_area: f32,
+}
+
+impl Child {
+    fn new(bvh2: &Bvh2, node: u32) -> Self {
+        let n = &bvh2.nodes[node as usize];
+        Self { node, leaf: leaf_prims(bvh2, node as usize).is_some(), half_area: n.aabb().half_area() }
+    }
+}
 
 impl Collapse<'_> {
     /// Fills wide node `wide` from BVH2 node `node`: its children, their
     /// quantized boxes and metadata, its leaf primitives (appended to
     /// `primitive_indices`) and empty nodes for its inner children (appended
-    /// to `nodes`), which it returns in slot order.
-    fn emit(&mut self, wide: usize, node: usize) -> InnerChildren {
+    /// to `nodes`), which it pushes as (wide node, BVH2 node) onto `stack`,
+    /// the first slot on top.
+    fn emit(&mut self, wide: usize, node: usize, stack: &mut Vec<(u32, u32)>) {
         let bvh2 = self.bvh2;
         let mut children = self.greedy_children(node);
         order_children(bvh2, node, &mut children);
@@ -88,11 +101,12 @@ impl Collapse<'_> {
             primitive_base_idx: self.primitive_indices.len() as u32,
             ..CwBvhNode::default()
         };
-        let mut inner = InnerChildren::with_capacity(BRANCHING);
+        let stack_base = stack.len();
+        let mut inner = 0;
         let mut prims = 0u32;
         for (slot, child) in children.iter().enumerate() {
             let Some(child) = *child else { continue };
-            let b = bvh2.nodes[child as usize].aabb();
+            let b = bvh2.nodes[child.node as usize].aabb();
             // Rounded outward, as obvhs quantizes: floor / ceil on a grid
             // of power-of-two step, so the dequantized box p + q e holds the
             // child's box (up to the rounding of b - p that `intersect_node`'s
@@ -105,9 +119,9 @@ impl Collapse<'_> {
             out.child_max_x[slot] = hi.x as u8;
             out.child_max_y[slot] = hi.y as u8;
             out.child_max_z[slot] = hi.z as u8;
-            if leaf_prims(bvh2, child as usize).is_some() {
+            if child.leaf {
                 let before = self.primitive_indices.len();
-                self.push_primitives(child as usize);
+                self.push_primitives(child.node as usize);
                 let count = (self.primitive_indices.len() - before) as u32;
                 // Meta: the count in unary in the top 3 bits, the offset of
                 // the first primitive from primitive_base_idx below.
@@ -117,13 +131,14 @@ impl Collapse<'_> {
                 // Meta of an inner child: 001 then 24 + slot.
                 out.imask |= 1 << slot;
                 out.child_meta[slot] = (24 + slot as u8) | 0b0010_0000;
-                inner.push(((self.nodes.len() + inner.len()) as u32, child));
+                stack.push(((self.nodes.len() + inner) as u32, child.node));
+                inner += 1;
             }
         }
         debug_assert!(prims as usize <= BRANCHING * MAX_LEAF_PRIMS as usize);
-        self.nodes.resize(self.nodes.len() + inner.len(), CwBvhNode::default());
+        stack[stack_base..].reverse();
+        self.nodes.resize(self.nodes.len() + inner, CwBvhNode::default());
         self.nodes[wide] = out;
-        inner
     }
 
     /// The greedy top-down collapse: from `node`'s two children (`node`
@@ -131,34 +146,31 @@ impl Collapse<'_> {
     /// with the largest surface area that is not a leaf child until there are
     /// 8 children. Children stay in BVH2 order (an opened child's two take
     /// its place), which `order_children` uses to break ties.
-    fn greedy_children(&self, node: usize) -> [Option<u32>; BRANCHING] {
-        let nodes = &self.bvh2.nodes;
+    fn greedy_children(&self, node: usize) -> [Option<Child>; BRANCHING] {
+        let bvh2 = self.bvh2;
+        let n = &bvh2.nodes[node];
         let mut children = [None; BRANCHING];
-        let mut count = if nodes[node].is_leaf() {
-            children[0] = Some(node as u32);
+        let mut count = if n.is_leaf() {
+            children[0] = Some(Child::new(bvh2, node as u32));
             1
         } else {
-            let first = nodes[node].first_index;
-            children[0] = Some(first);
-            children[1] = Some(first + 1);
+            children[0] = Some(Child::new(bvh2, n.first_index));
+            children[1] = Some(Child::new(bvh2, n.first_index + 1));
             2
         };
         while count < BRANCHING {
             let mut best: Option<(usize, f32)> = None;
-            for (i, &child) in children[..count].iter().enumerate() {
-                let child = child.expect("children are packed") as usize;
-                if leaf_prims(self.bvh2, child).is_none() {
-                    let area = nodes[child].aabb().half_area();
-                    if best.is_none_or(|(_, a)| area > a) {
-                        best = Some((i, area));
-                    }
+            for (i, child) in children[..count].iter().enumerate() {
+                let child = child.expect("children are packed");
+                if !child.leaf && best.is_none_or(|(_, a)| child.half_area > a) {
+                    best = Some((i, child.half_area));
                 }
             }
             let Some((i, _)) = best else { break };
-            let first = nodes[children[i].expect("children are packed") as usize].first_index;
+            let first = bvh2.nodes[children[i].expect("children are packed").node as usize].first_index;
             children.copy_within(i + 1..count, i + 2);
-            children[i] = Some(first);
-            children[i + 1] = Some(first + 1);
+            children[i] = Some(Child::new(bvh2, first));
+            children[i + 1] = Some(Child::new(bvh2, first + 1));
             count += 1;
         }
         children
@@ -218,33 +230,33 @@ fn quantization_step(extent: Vec3A) -> Vec3A {
 /// the paper suggests an auction, obvhs found greedy almost as good). A ray
 /// of octant s then visits the children in slot order xor s roughly front to
 /// back.
-fn order_children(bvh2: &Bvh2, node: usize, children: &mut [Option<u32>; BRANCHING]) {
+fn order_children(bvh2: &Bvh2, node: usize, children: &mut [Option<Child>; BRANCHING]) {
     let count = children.iter().take_while(|c| c.is_some()).count();
     let centre = bvh2.nodes[node].aabb().center();
-    let mut offsets = [Vec3A::ZERO; BRANCHING];
-    for (v, c) in offsets.iter_mut().zip(&children[..count]) {
-        *v = bvh2.nodes[c.expect("children are packed") as usize].aabb().center() - centre;
+    // cost[c][s]; slot s's direction: bit 2 of s negates x, bit 1 y, bit 0
+    // z, matching the traversal's oct_inv4.
+    let mut cost = [[0.0f32; BRANCHING]; BRANCHING];
+    for (row, child) in cost.iter_mut().zip(&children[..count]) {
+        let v = bvh2.nodes[child.expect("children are packed").node as usize].aabb().center() - centre;
+        for (s, c) in row.iter_mut().enumerate() {
+            let d = Vec3A::new(
+                if s & 0b100 != 0 { -1.0 } else { 1.0 },
+                if s & 0b010 != 0 { -1.0 } else { 1.0 },
+                if s & 0b001 != 0 { -1.0 } else { 1.0 },
+            );
+            *c = d.dot(v);
+        }
     }
-    // Slot s's direction: bit 2 of s negates x, bit 1 y, bit 0 z, matching
-    // the traversal's oct_inv4.
-    let direction = |s: usize| {
-        Vec3A::new(
-            if s & 0b100 != 0 { -1.0 } else { 1.0 },
-            if s & 0b010 != 0 { -1.0 } else { 1.0 },
-            if s & 0b001 != 0 { -1.0 } else { 1.0 },
-        )
-    };
     let mut assignment = [usize::MAX; BRANCHING];
     let mut filled = [false; BRANCHING];
     loop {
         let mut best: Option<(usize, usize, f32)> = None;
-        for (c, v) in offsets[..count].iter().enumerate() {
+        for (c, row) in cost[..count].iter().enumerate() {
             if assignment[c] != usize::MAX {
                 continue;
             }
-            for (s, _) in filled.iter().enumerate().filter(|(_, f)| !**f) {
-                let cost = direction(s).dot(*v);
-                if best.is_none_or(|(_, _, b)| cost < b) {
+            for (s, &cost) in row.iter().enumerate() {
+                if !filled[s] && best.is_none_or(|(_, _, b)| cost < b) {
                     best = Some((c, s, cost));
                 }
             }
