@@ -89,7 +89,7 @@ impl Accel {
         // `kept[k]` is the input index of the k-th non-degenerate triangle;
         // None when all are kept. obvhs gets positions 0..k, not input
         // indices: with a single primitive its PLOC skips clustering and
-        // stores the index as a position (0.4.0 then panics in bvh2_to_cwbvh).
+        // stores the index as a position.
         let degenerate = (0..len).into_par_iter().filter(|&i| is_degenerate(&tri(i))).count();
         let kept: Option<Vec<u32>> = (degenerate > 0)
             .then(|| (0..len as u32).into_par_iter().filter(|&i| !is_degenerate(&tri(i as usize))).collect());
