@@ -1,9 +1,8 @@
 //! The BVH over all scene triangles: closest hit and occlusion.
 //!
-//! Structure: obvhs builds a PLOC BVH2 (Meister & Bittner 2018), which
-//! `wide_bvh::collapse` turns into a compressed 8-wide BVH (Ylitie, Karras &
-//! Laine 2017, "Efficient Incoherent Ray Traversal on GPUs Through Compressed
-//! Wide BVHs") in obvhs's node format, greedily. Traversal is
+//! Structure: obvhs builds a PLOC BVH2 (Meister & Bittner 2018) and collapses it
+//! into a compressed 8-wide BVH (Ylitie, Karras & Laine 2017, "Efficient
+//! Incoherent Ray Traversal on GPUs Through Compressed Wide BVHs"). Traversal is
 //! obvhs's `traverse!` loop, but with our own node and primitive tests:
 //!
 //! - Primitive: the watertight ray/triangle test of Woop, Benthin & Wald 2013,
@@ -25,12 +24,11 @@
 //! never be hit, and a renderer could not compute their normal anyway.
 
 use crate::geometry::{gamma, Ray};
-use crate::wide_bvh;
 use glam::{DVec3, Vec3A, Vec3Swizzles, Vec4};
 use obvhs::{
     aabb::Aabb,
     bvh2::{node::Bvh2Node, reinsertion::ReinsertionOptimizer, Bvh2},
-    cwbvh::{node::CwBvhNode, CwBvh},
+    cwbvh::{bvh2_to_cwbvh::bvh2_to_cwbvh, node::CwBvhNode, CwBvh},
     ploc::{PlocBuilder, PlocSearchDistance},
     BvhBuildParams,
 };
@@ -89,7 +87,7 @@ impl Accel {
         // `kept[k]` is the input index of the k-th non-degenerate triangle;
         // None when all are kept. obvhs gets positions 0..k, not input
         // indices: with a single primitive its PLOC skips clustering and
-        // stores the index as a position.
+        // stores the index as a position (0.4.0 then panics in bvh2_to_cwbvh).
         let degenerate = (0..len).into_par_iter().filter(|&i| is_degenerate(&tri(i))).count();
         let kept: Option<Vec<u32>> = (degenerate > 0)
             .then(|| (0..len as u32).into_par_iter().filter(|&i| !is_degenerate(&tri(i as usize))).collect());
@@ -143,11 +141,10 @@ impl Accel {
             // Reinsertion's parent links; the conversion does not use them.
             bvh2.parents = Vec::new();
             bvh2.primitives_to_nodes = Vec::new();
-            // PLOC's leaves hold one triangle each; the collapse gathers up
-            // to 3 per leaf child (obvhs's bvh2_to_cwbvh clamps
-            // max_prims_per_leaf to the same 3).
-            let cwbvh = wide_bvh::collapse(&bvh2);
+            let mut cwbvh = bvh2_to_cwbvh(&bvh2, p.max_prims_per_leaf.clamp(1, 3), true, false);
             drop(bvh2);
+            // Reserved for one node per primitive; a few percent of that is used.
+            cwbvh.nodes.shrink_to_fit();
             cwbvh
         };
         // From here on primitive_indices maps a slot to the input index.
