@@ -3,7 +3,8 @@
 //! Structure: obvhs builds a PLOC BVH2 (Meister & Bittner 2018) and collapses it
 //! into a compressed 8-wide BVH (Ylitie, Karras & Laine 2017, "Efficient
 //! Incoherent Ray Traversal on GPUs Through Compressed Wide BVHs"). Traversal is
-//! obvhs's `traverse!` loop, but with our own node and primitive tests:
+//! our own loop after the paper's algorithm 1 (`Accel::traverse`), with our
+//! own node and primitive tests:
 //!
 //! - Primitive: the watertight ray/triangle test of Woop, Benthin & Wald 2013,
 //!   "Watertight Ray/Triangle Intersection" (JCGT 2(1)), with its
@@ -603,6 +604,19 @@ mod tests {
             Vec3A::new(0.0, 1.0, 0.0),
         ];
         vec![[c[0], c[1], c[2]], [c[0], c[2], c[3]]]
+    }
+
+    #[test]
+    fn decode8_converts_every_byte_exactly() {
+        for base in (0..=255u8).step_by(8) {
+            let v: [u8; 8] = std::array::from_fn(|i| base + i as u8);
+            let [lo, hi] = decode8(&v);
+            let want = v.map(f32::from);
+            assert_eq!((lo.to_array(), hi.to_array()), (want[..4].try_into().unwrap(), want[4..].try_into().unwrap()));
+        }
+        let v = [255, 0, 128, 1, 7, 200, 0, 255];
+        let [lo, hi] = decode8(&v);
+        assert_eq!([lo.to_array(), hi.to_array()].concat(), v.map(f32::from));
     }
 
     #[test]

@@ -182,6 +182,32 @@ fn negative_control_sample_consistency() {
     assert!(r.is_err(), "a 1% pdf error was not caught");
 }
 
+/// `eval_with_pdfs` (what a BDPT connection calls; fused for the diffuse
+/// BSDF) gives exactly `eval`, `pdf` and the reverse `pdf` in the adjoint
+/// mode, on random pairs and on pairs the BSDF samples itself (so that
+/// glossy and transmissive lobes are nonzero).
+#[test]
+fn eval_with_pdfs_is_eval_and_both_pdfs() {
+    let mut all: Vec<(String, Bsdf)> = rough_set().into_iter().map(|r| (r.name, r.bsdf)).collect();
+    all.extend(smooth_set());
+    let l = lambda();
+    for (name, b) in &all {
+        let mut pairs = direction_pairs(200);
+        pairs.extend(sampled_pairs(b, 200));
+        let mut nonzero = 0;
+        for &(wo, wi) in &pairs {
+            for mode in MODES {
+                let e = b.eval_with_pdfs(wo, wi, &l, mode);
+                let want = (b.eval(wo, wi, &l, mode), b.pdf(wo, wi, &l, mode), b.pdf(wi, wo, &l, mode.flip()));
+                assert_eq!((e.f, e.pdf, e.pdf_rev), want, "{name} {mode:?} wo {wo} wi {wi}");
+                nonzero += usize::from(!e.f.is_black());
+            }
+        }
+        let delta = b.flags().is_specular() && !b.flags().is_non_specular();
+        assert!(delta || nonzero > 0, "{name}: no nonzero pair tested");
+    }
+}
+
 // ---------------------------------------------------------------- reciprocity
 
 /// Index of the medium on w's side: 1 outside (z > 0), eta inside.

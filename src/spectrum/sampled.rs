@@ -260,6 +260,13 @@ mod tests {
     fn inverse_cdf_covers_the_range() {
         assert!((sample_visible_wavelength(0.0) - 360.0).abs() < 0.5);
         assert!((sample_visible_wavelength(1.0) - 830.0).abs() < 0.5);
+        // The vector sampler: u = 0 gives 360 nm in lane 0, u just below
+        // 1 gives 830 nm in lane 0 and lane 3 (u' = u + 3/4 - 1).
+        let l = SampledWavelengths::sample_visible(0.0);
+        assert!((l.lambda.x - 360.0).abs() < 0.5, "{}", l.lambda);
+        let l = SampledWavelengths::sample_visible(1.0 - f32::EPSILON);
+        assert!((l.lambda.x - 830.0).abs() < 0.5, "{}", l.lambda);
+        assert!(l.lambda.min_element() >= 359.5 && l.lambda.max_element() < 830.5, "{}", l.lambda);
     }
 
     #[test]
