@@ -1,8 +1,8 @@
 //! The BVH over all scene triangles: closest hit and occlusion.
 //!
-//! Structure: obvhs builds a PLOC BVH2 (Meister & Bittner 2018) and collapses it
-//! into a compressed 8-wide BVH (Ylitie, Karras & Laine 2017, "Efficient
-//! Incoherent Ray Traversal on GPUs Through Compressed Wide BVHs"). Traversal is
+//! Structure: a compressed 8-wide BVH (Ylitie, Karras & Laine 2017, "Efficient
+//! Incoherent Ray Traversal on GPUs Through Compressed Wide BVHs") in obvhs's
+//! node format, built top-down by binned SAH (`wide_bvh`). Traversal is
 //! our own loop after the paper's algorithm 1 (`Accel::traverse`), with our
 //! own node and primitive tests:
 //!
@@ -25,13 +25,11 @@
 //! never be hit, and a renderer could not compute their normal anyway.
 
 use crate::geometry::{gamma, Ray};
+use crate::wide_bvh::{self, PrimRef};
 use glam::{DVec3, Vec3A, Vec3Swizzles, Vec4};
 use obvhs::{
     aabb::Aabb,
-    bvh2::{node::Bvh2Node, reinsertion::ReinsertionOptimizer, Bvh2},
-    cwbvh::{bvh2_to_cwbvh::bvh2_to_cwbvh, node::CwBvhNode, CwBvh},
-    ploc::{PlocBuilder, PlocSearchDistance},
-    BvhBuildParams,
+    cwbvh::{node::CwBvhNode, CwBvh},
 };
 use rayon::prelude::*;
 
@@ -61,98 +59,37 @@ pub struct Accel {
 
 const NO_SLOT: u32 = u32::MAX;
 
-/// Build preset: PLOC with search radius 1 at the top levels and a little
-/// reinsertion. `fast_build` takes about 1 s of CPU time (both threads
-/// summed) for 1.3M triangles, see benches/bvh.rs; `medium_build` took 30%
-/// longer for no fewer nodes visited per ray on incoherent rays.
-const BUILD_PARAMS: BvhBuildParams = BvhBuildParams::fast_build();
-
 impl Accel {
     pub fn build(tris: &[[Vec3A; 3]]) -> Self {
         Self::build_with(tris.len(), |i| tris[i])
     }
 
-    /// Builds over `len` triangles given by `tri(i)` (called a few times per
+    /// Builds over `len` triangles given by `tri(i)` (called twice per
     /// triangle, from several threads), so a caller with indexed meshes needs
     /// no `[[Vec3A; 3]]` copy of its vertices.
     ///
-    /// Memory: the temporaries are freed as soon as the next stage no longer
-    /// needs them (PLOC's node arrays before reinsertion, the BVH2 before the
-    /// triangles are copied in slot order), and the leaves are written
-    /// straight into PLOC's node array, without an AABB array in between.
+    /// Memory: the builder's 32-byte boxes are freed before the triangles
+    /// are copied in slot order, so the two are never held together.
     pub fn build_with<F>(len: usize, tri: F) -> Self
     where
         F: Fn(usize) -> [Vec3A; 3] + Sync,
     {
         assert!(len < u32::MAX as usize, "{len} triangles: at most 2^32 - 2");
-        // `kept[k]` is the input index of the k-th non-degenerate triangle;
-        // None when all are kept. obvhs gets positions 0..k, not input
-        // indices: with a single primitive its PLOC skips clustering and
-        // stores the index as a position (0.4.0 then panics in bvh2_to_cwbvh).
-        let degenerate = (0..len).into_par_iter().filter(|&i| is_degenerate(&tri(i))).count();
-        let kept: Option<Vec<u32>> = (degenerate > 0)
-            .then(|| (0..len as u32).into_par_iter().filter(|&i| !is_degenerate(&tri(i as usize))).collect());
-        let input = |k: usize| kept.as_ref().map_or(k, |kept| kept[k] as usize);
-        let n = len - degenerate;
-        let mut bvh = if n == 0 {
-            CwBvh::default()
-        } else {
-            // obvhs's `build_cwbvh` minus its debug-build validate(), which
-            // takes minutes on a million triangles in unoptimised test
-            // builds, and with PLOC's leaves made here (as its `build_ploc`
-            // makes them from an AABB array; the total box is a min / max,
-            // exact in any order, so the BVH is the same).
-            let p = BUILD_PARAMS;
-            let mut ploc = PlocBuilder::new();
-            ploc.current_nodes = (0..n)
-                .into_par_iter()
-                .map(|k| {
-                    let t = tri(input(k));
-                    Bvh2Node::new(Aabb::new(t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2])), 1, k as u32)
-                })
-                .collect();
-            let total = ploc
-                .current_nodes
-                .par_iter()
-                .fold(Aabb::empty, |a, node| a.union(node.aabb()))
-                .reduce(Aabb::empty, |a, b| a.union(&b));
-            let mut bvh2 = Bvh2::default();
-            bvh2.reset_for_reuse(n, Some((0..n as u32).collect()));
-            let (precision, depth) = (p.sort_precision, p.search_depth_threshold);
-            match p.ploc_search_distance {
-                PlocSearchDistance::Minimum => {
-                    ploc.build_ploc_from_leaves::<1, false>(&mut bvh2, total, precision, depth)
-                }
-                PlocSearchDistance::VeryLow => {
-                    ploc.build_ploc_from_leaves::<2, false>(&mut bvh2, total, precision, depth)
-                }
-                PlocSearchDistance::Low => ploc.build_ploc_from_leaves::<6, false>(&mut bvh2, total, precision, depth),
-                PlocSearchDistance::Medium => {
-                    ploc.build_ploc_from_leaves::<14, false>(&mut bvh2, total, precision, depth)
-                }
-                PlocSearchDistance::High => {
-                    ploc.build_ploc_from_leaves::<24, false>(&mut bvh2, total, precision, depth)
-                }
-                PlocSearchDistance::VeryHigh => {
-                    ploc.build_ploc_from_leaves::<32, false>(&mut bvh2, total, precision, depth)
-                }
-            }
-            drop(ploc);
-            ReinsertionOptimizer::default().run(&mut bvh2, p.reinsertion_batch_ratio, None);
-            // Reinsertion's parent links; the conversion does not use them.
-            bvh2.parents = Vec::new();
-            bvh2.primitives_to_nodes = Vec::new();
-            let mut cwbvh = bvh2_to_cwbvh(&bvh2, p.max_prims_per_leaf.clamp(1, 3), true, false);
-            drop(bvh2);
-            // Reserved for one node per primitive; a few percent of that is used.
-            cwbvh.nodes.shrink_to_fit();
-            cwbvh
-        };
-        // From here on primitive_indices maps a slot to the input index.
-        if let Some(kept) = &kept {
-            bvh.primitive_indices.par_iter_mut().for_each(|i| *i = kept[*i as usize]);
-        }
-        drop(kept);
+        // Degenerate triangles get an empty box and are dropped in place.
+        let mut refs: Vec<PrimRef> = (0..len)
+            .into_par_iter()
+            .map(|i| {
+                let t = tri(i);
+                let b = if is_degenerate(&t) {
+                    Aabb::empty()
+                } else {
+                    Aabb::new(t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]))
+                };
+                PrimRef::new(b, i as u32)
+            })
+            .collect();
+        refs.retain(|r| r.is_valid());
+        let bvh = wide_bvh::build(refs);
         let sorted: Vec<SoaTriangle> =
             bvh.primitive_indices.par_iter().map(|&i| SoaTriangle::new(&tri(i as usize))).collect();
         let mut slots = vec![NO_SLOT; len];

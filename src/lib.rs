@@ -19,6 +19,7 @@ pub mod scene;
 pub mod shapes;
 pub mod spectrum;
 pub mod stats;
+pub mod wide_bvh;
 
 #[path = "../materials/mod.rs"]
 pub mod materials;
