@@ -795,7 +795,7 @@ mod tests {
     /// returns the primitives in visiting order and the depth.
     fn check(bvh: &CwBvh, boxes: &[Aabb]) -> (Vec<u32>, usize) {
         fn walk(bvh: &CwBvh, boxes: &[Aabb], node: usize, out: &mut Vec<u32>, depth: usize) -> (Vec<u32>, usize) {
-            assert!(depth < 128, "too deep");
+            assert!(depth < 64, "too deep");
             let n = &bvh.nodes[node];
             let e = n.compute_extent();
             let p = Vec3A::from(n.p);
@@ -884,24 +884,25 @@ mod tests {
     }
 
     #[test]
-    fn exponentially_spaced_centroids_stay_shallow() {
-        // Each SAH split peels off the few largest centroids; the median
-        // fallback below SAH_DEPTH keeps the depth logarithmic.
-        let boxes: Vec<Aabb> = (0..50_000)
+    fn beyond_sah_depth_splits_are_medians() {
+        // 1024 unit boxes on a line at x = i^2: object medians halve the
+        // counts (every child a power of two), SAH planes do not.
+        let boxes: Vec<Aabb> = (0..1024)
             .map(|i| {
-                let x = (1e-30 * (i as f64 * 138.0 / 50_000.0).exp()) as f32;
-                Aabb::new(Vec3A::new(x, 0.0, 0.0), Vec3A::new(x, 1.0, 1.0))
+                let x = (i * i) as f32;
+                Aabb::new(Vec3A::new(x, 0.0, 0.0), Vec3A::new(x + 1.0, 1.0, 1.0))
             })
             .collect();
-        assert!(boxes.iter().all(|b| b.min.x.is_finite()));
-        let bvh = build_boxes(&boxes);
-        let (seen, depth) = check(&bvh, &boxes);
-        assert_eq!(seen.len(), boxes.len());
-        // At most SAH_DEPTH wide levels of SAH, then medians down to
-        // OPTIMAL_PRIMS (3 levels from 50,000); below, at most SAH_DEPTH
-        // binary levels of SAH and 8 of medians, each wide level at least
-        // one of them.
-        assert!(depth <= 2 * SAH_DEPTH as usize + 11, "depth {depth}");
+        let sizes = |depth| {
+            let mut refs: Vec<PrimRef> = boxes.iter().enumerate().map(|(i, b)| PrimRef::new(*b, i as u32)).collect();
+            let root = Range::of(&refs, 0, refs.len());
+            open_children(&mut refs, root, depth).iter().map(Range::len).collect::<Vec<_>>()
+        };
+        let median = sizes(SAH_DEPTH);
+        assert_eq!(median.len(), BRANCHING);
+        assert!(median.iter().all(|s| s.is_power_of_two()), "{median:?}");
+        let sah = sizes(SAH_DEPTH - 1);
+        assert!(!sah.iter().all(|s| s.is_power_of_two()), "{sah:?}");
     }
 
     #[test]
