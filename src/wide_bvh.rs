@@ -1,25 +1,29 @@
 //! The 8-wide BVH builder: binned SAH, straight into compressed wide nodes.
 //!
-//! Top-down, as Embree's BVH8 builder (Wald et al. 2014, "Embree: A Kernel
-//! Framework for Efficient CPU Ray Tracing", sec. 4): a wide node starts as one
-//! child holding all its primitives and repeatedly splits its child with the
-//! largest surface area in two until it has 8 children or every child is a
-//! leaf. Each split is the binned SAH split of Wald 2007 ("On fast
-//! Construction of SAH-based Bounding Volume Hierarchies", sec. 3): the
-//! primitives' centroids are binned into 32 bins per axis, and the plane
-//! between two bins with the lowest A_l N_l + A_r N_r is taken.
+//! Above `OPTIMAL_PRIMS` primitives the build is top-down, as Embree's BVH8
+//! builder (Wald et al. 2014, "Embree: A Kernel Framework for Efficient CPU
+//! Ray Tracing", sec. 4): a wide node starts as one child holding all its
+//! primitives and repeatedly splits its child with the largest surface area
+//! in two until it has 8 children. Each split is the binned SAH split of Wald
+//! 2007 ("On fast Construction of SAH-based Bounding Volume Hierarchies",
+//! sec. 3, 32 bins), on the three centroid axes and on a fourth axis of size
+//! classes (see `Grid`); ranges of at most 16 primitives are swept exactly.
+//! Smaller subtrees get a local binary SAH tree and the SAH-optimal collapse
+//! into wide nodes of Ylitie, Karras & Laine 2017 ("Efficient Incoherent Ray
+//! Traversal on GPUs Through Compressed Wide BVHs"), as Bonsai (Ganestam et
+//! al. 2015, JCGT 4(3)) builds mini trees under a coarse top split.
 //!
-//! The node format is Ylitie, Karras & Laine 2017, "Efficient Incoherent Ray
-//! Traversal on GPUs Through Compressed Wide BVHs", sec. 3.1, as obvhs stores
-//! it (`CwBvhNode`), so `Accel`'s traversal reads it unchanged.
+//! The node format is Ylitie et al.'s compressed one (sec. 3.1) as obvhs
+//! stores it (`CwBvhNode`), so `Accel`'s traversal reads it unchanged.
 //!
-//! Memory: one 32-byte `PrimRef` per primitive, partitioned in place, and the
-//! output (80 bytes per wide node, 4 per primitive). No binary BVH is ever
-//! materialised, so the peak stays near the finished BVH's size (obvhs's
-//! PLOC BVH2 and its optimal-collapse table took 176 bytes per triangle).
+//! Memory: one 32-byte `PrimRef` per primitive, partitioned in place and
+//! left in leaf order (so the primitive array is read off it at the end),
+//! and 80 bytes per wide node. No binary BVH over the whole scene is ever
+//! held (obvhs's PLOC BVH2 and its optimal-collapse table took 176 bytes per
+//! triangle).
 //!
 //! Determinism: the tree depends only on the input. Large subtrees are built
-//! as rayon tasks into their own arrays and merged in a fixed order into
+//! as rayon tasks into their own node arrays and merged in a fixed order into
 //! exactly the bytes a serial build writes, whatever the thread count.
 
 use glam::{BVec4A, Vec3A, Vec4};
@@ -36,7 +40,7 @@ const BRANCHING: usize = 8;
 /// its top 3 bits (Ylitie et al. 2017, sec. 3.1).
 pub const MAX_LEAF_PRIMS: usize = 3;
 
-/// Centroid bins per axis for the SAH sweep.
+/// Bins per axis for the binned SAH.
 const BINS: usize = 32;
 
 /// Nodes over at least this many primitives build their inner children as
@@ -219,9 +223,8 @@ fn split_in_two(refs: &mut [PrimRef], range: &Range, split: Option<Split>) -> (R
     }
 }
 
-/// Ylitie et al. 2017, sec. 4.1 (after Wald et al. 2008?): the optimal
-/// collapse of a binary BVH into 8-wide nodes by dynamic programming over
-/// the SAH cost, here over a local binary SAH tree of at most
+/// Ylitie et al. 2017's SAH-optimal collapse of a binary BVH into 8-wide
+/// nodes by dynamic programming over the SAH cost, here over a local binary SAH tree of at most
 /// `OPTIMAL_PRIMS` primitives, so the table stays small. `cost[n][i - 1]` is
 /// the least cost of binary node n's subtree spread over at most i child
 /// slots of a wide node:
