@@ -24,7 +24,7 @@
 //! triangles (zero area, non-finite vertices) are left out of the BVH: they can
 //! never be hit, and a renderer could not compute their normal anyway.
 
-use crate::geometry::{gamma, Ray};
+use crate::geometry::{gamma, Ray, NO_TRIANGLE};
 use crate::wide_bvh::{self, PrimRef};
 use glam::{DVec3, Vec3A, Vec3Swizzles, Vec4};
 use obvhs::{
@@ -45,6 +45,8 @@ pub struct TriangleHit {
     pub b1: f32,
     pub b2: f32,
     pub v: [Vec3A; 3],
+    /// The triangle's BVH slot (for `Ray::skip` of rays leaving it).
+    pub slot: u32,
 }
 
 pub struct Accel {
@@ -58,7 +60,7 @@ pub struct Accel {
     input_len: usize,
 }
 
-const NO_SLOT: u32 = u32::MAX;
+const NO_SLOT: u32 = NO_TRIANGLE;
 
 impl Accel {
     pub fn build(tris: &[[Vec3A; 3]]) -> Self {
@@ -108,6 +110,13 @@ impl Accel {
         (s != NO_SLOT).then(|| self.tris[s as usize].vertices())
     }
 
+    /// The BVH slot of input triangle `prim` (what `Ray::skip` and
+    /// `TriangleHit::slot` hold), or `NO_TRIANGLE` for a degenerate one.
+    #[inline]
+    pub fn slot(&self, prim: u32) -> u32 {
+        self.slots.get(prim as usize).copied().unwrap_or(NO_SLOT)
+    }
+
     /// Whether input triangle `prim` is in the BVH (not degenerate).
     #[inline]
     pub fn contains(&self, prim: u32) -> bool {
@@ -143,12 +152,16 @@ impl Accel {
         }
     }
 
-    /// Closest hit with t in (0, t_max).
+    /// Closest hit with t in (0, t_max), not testing the triangles of
+    /// `ray.skip`.
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<TriangleHit> {
         let pre = PreparedRay::new(ray)?;
         let mut best_t = t_max;
         let mut best: Option<(u32, f32, f32)> = None;
         self.traverse(&pre, &mut best_t, |slot, best_t| {
+            if ray.skip.contains(&slot) {
+                return false;
+            }
             if let Some((t, b1, b2)) = pre.intersect(&self.tris[slot as usize], *best_t) {
                 *best_t = t;
                 best = Some((slot, b1, b2));
@@ -161,10 +174,12 @@ impl Accel {
             b1,
             b2,
             v: self.tris[slot as usize].vertices(),
+            slot,
         })
     }
 
-    /// Whether anything blocks the ray in (0, t_max); stops at the first hit.
+    /// Whether anything but the triangles of `ray.skip` blocks the ray in
+    /// (0, t_max); stops at the first hit.
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
         let Some(pre) = PreparedRay::new(ray) else {
             return false;
@@ -172,7 +187,7 @@ impl Accel {
         let mut t_max = t_max;
         let mut hit = false;
         self.traverse(&pre, &mut t_max, |slot, t_max| {
-            hit = pre.intersect(&self.tris[slot as usize], *t_max).is_some();
+            hit = !ray.skip.contains(&slot) && pre.intersect(&self.tris[slot as usize], *t_max).is_some();
             hit
         });
         hit

@@ -6,12 +6,21 @@ use glam::Vec3A;
 pub struct Ray {
     pub o: Vec3A,
     pub d: Vec3A,
+    /// BVH slots of triangles the ray cannot hit, which the traversal need
+    /// not test (`NO_TRIANGLE` for none): the one it leaves and the one it is
+    /// aimed at. A ray leaving a planar triangle, from an origin offset to
+    /// the side it travels to, moves away from the triangle's plane and can
+    /// never meet it again; a shadow ray stops short of its target.
+    pub skip: [u32; 2],
 }
+
+/// No triangle (a `SurfacePoint` off any surface, or a `Ray::skip` entry).
+pub const NO_TRIANGLE: u32 = u32::MAX;
 
 impl Ray {
     #[inline]
     pub fn new(o: Vec3A, d: Vec3A) -> Self {
-        Self { o, d }
+        Self { o, d, skip: [NO_TRIANGLE; 2] }
     }
     #[inline]
     pub fn at(&self, t: f32) -> Vec3A {
@@ -78,13 +87,22 @@ pub struct SurfacePoint {
     pub p: Vec3A,
     pub p_error: Vec3A,
     pub n: Vec3A,
+    /// The BVH slot of the triangle the point is on, or `NO_TRIANGLE`.
+    pub slot: u32,
 }
 
 impl SurfacePoint {
     /// An exactly known point off any surface.
     #[inline]
     pub fn at(p: Vec3A) -> Self {
-        Self { p, p_error: Vec3A::ZERO, n: Vec3A::ZERO }
+        Self { p, p_error: Vec3A::ZERO, n: Vec3A::ZERO, slot: NO_TRIANGLE }
+    }
+
+    /// A ray leaving the point towards `w`, from `spawn_origin`, that need
+    /// not test the point's own triangle.
+    #[inline]
+    pub fn spawn_ray(&self, w: Vec3A) -> Ray {
+        Ray { o: self.spawn_origin(w), d: w, skip: [self.slot, NO_TRIANGLE] }
     }
 
     /// The origin of a ray leaving towards `w`: off the surface when there is

@@ -8,7 +8,7 @@
 //!
 //! Lights are an enum matched in the hot loop; one light per emissive triangle.
 
-use crate::geometry::{barycentric_error, Frame, Ray, SurfacePoint};
+use crate::geometry::{barycentric_error, Frame, Ray, SurfacePoint, NO_TRIANGLE};
 use crate::sampling::{cosine_hemisphere, uniform_sphere, uniform_triangle, UNIFORM_SPHERE_PDF};
 use crate::spectrum::{SampledSpectrum, SampledWavelengths, Spectrum};
 use glam::{Vec2, Vec3A};
@@ -32,6 +32,8 @@ pub struct AreaLight {
     pub two_sided: bool,
     /// Index of the scene triangle.
     pub prim: u32,
+    /// Its BVH slot (set once the BVH is built).
+    pub slot: u32,
 }
 
 /// An isotropic point light of radiant intensity `intensity` (W/sr per nm).
@@ -65,12 +67,14 @@ pub struct LightLiSample {
     pub n: Vec3A,
     /// Solid-angle density at the reference point (for a delta light: 1).
     pub pdf_w: f32,
+    /// BVH slot of the light's triangle (`NO_TRIANGLE` for the others).
+    pub slot: u32,
 }
 
 impl LightLiSample {
     #[inline]
     pub fn point(&self) -> SurfacePoint {
-        SurfacePoint { p: self.p, p_error: self.p_error, n: self.n }
+        SurfacePoint { p: self.p, p_error: self.p_error, n: self.n, slot: self.slot }
     }
 }
 
@@ -87,6 +91,8 @@ pub struct LightLeSample {
     pub pdf_pos: f32,
     /// Solid-angle density of the direction.
     pub pdf_dir: f32,
+    /// BVH slot of the emitting triangle (`NO_TRIANGLE` for the others).
+    pub slot: u32,
 }
 
 impl Light {
@@ -147,7 +153,7 @@ impl Light {
                     return None;
                 }
                 let pdf_w = dist2 / (cos_l.abs() * a.area);
-                Some(LightLiSample { l, wi, dist, p, p_error, n: a.n, pdf_w })
+                Some(LightLiSample { l, wi, dist, p, p_error, n: a.n, pdf_w, slot: a.slot })
             }
             Light::Point(pl) => {
                 let to = pl.p - p_ref;
@@ -165,6 +171,7 @@ impl Light {
                     p_error: Vec3A::ZERO,
                     n: Vec3A::ZERO,
                     pdf_w: 1.0,
+                    slot: NO_TRIANGLE,
                 })
             }
             Light::Environment(e) => {
@@ -177,6 +184,7 @@ impl Light {
                     p_error: Vec3A::ZERO,
                     n: Vec3A::ZERO,
                     pdf_w: UNIFORM_SPHERE_PDF,
+                    slot: NO_TRIANGLE,
                 })
             }
         }
@@ -232,6 +240,7 @@ impl Light {
                     l: a.le.sample(lambda),
                     pdf_pos: 1.0 / a.area,
                     pdf_dir,
+                    slot: a.slot,
                 })
             }
             Light::Point(pl) => {
@@ -243,6 +252,7 @@ impl Light {
                     l: pl.intensity.sample(lambda),
                     pdf_pos: 1.0,
                     pdf_dir: UNIFORM_SPHERE_PDF,
+                    slot: NO_TRIANGLE,
                 })
             }
             Light::Environment(e) => {
@@ -259,6 +269,7 @@ impl Light {
                     l: e.le.sample(lambda),
                     pdf_pos: 1.0 / (PI * e.radius * e.radius),
                     pdf_dir: UNIFORM_SPHERE_PDF,
+                    slot: NO_TRIANGLE,
                 })
             }
         }

@@ -150,10 +150,10 @@ impl Vertex {
     }
 
     fn endpoint(kind: VertexKind, at: SurfacePoint, wo: Vec3A, light: Option<u32>) -> SurfaceInteraction {
-        let SurfacePoint { p, p_error, n } = at;
+        let SurfacePoint { p, p_error, n, slot } = at;
         let frame = if n == Vec3A::ZERO { Frame::from_normal(Vec3A::Z) } else { Frame::from_normal(n) };
         debug_assert!(kind != VertexKind::Surface);
-        SurfaceInteraction { p, p_error, t: 0.0, ng: n, frame, wo, material: u32::MAX, light }
+        SurfaceInteraction { p, p_error, t: 0.0, ng: n, frame, wo, material: u32::MAX, light, slot }
     }
 
     /// The pinhole as the first camera vertex, with throughput `beta`.
@@ -403,12 +403,12 @@ pub fn light_subpath(
         (v, v.beta / le.pdf_pos, le.pdf_pos)
     } else {
         let n = if light.is_delta_position() { Vec3A::ZERO } else { le.n };
-        let at = SurfacePoint { p: le.ray.o, p_error: le.p_error, n };
+        let at = SurfacePoint { p: le.ray.o, p_error: le.p_error, n, slot: le.slot };
         let v = Vertex::light(i, at, le.l / (pmf * le.pdf_pos), pmf * le.pdf_pos);
         let cos = if n == Vec3A::ZERO { 1.0 } else { n.dot(le.ray.d).abs() };
         // `sample_le` leaves the origin on the emitter: move it off, or the
         // ray may hit its own triangle at t ~ 0.
-        ray.o = at.spawn_origin(ray.d);
+        ray = at.spawn_ray(ray.d);
         (v, v.beta * (cos / le.pdf_dir), le.pdf_dir)
     };
     path.push(origin);

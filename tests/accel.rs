@@ -5,7 +5,7 @@
 
 use glam::{Affine3A, Vec3A};
 use prism::accel::{intersect_triangle, is_degenerate, Accel, TriangleHit};
-use prism::geometry::{barycentric_error, offset_ray_origin, Ray};
+use prism::geometry::{barycentric_error, offset_ray_origin, Ray, NO_TRIANGLE};
 use prism::shapes::Mesh;
 use rand_xoshiro::rand_core::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
@@ -62,13 +62,18 @@ fn hit_point_error(t: &[Vec3A; 3], h: &TriangleHit) -> Vec3A {
 }
 
 /// Closest hit by testing every triangle with the same watertight test; ties
-/// go to the lowest input index.
+/// go to the lowest input index. (`slot` is not known here.)
 fn brute(tris: &[[Vec3A; 3]], ray: &Ray, t_max: f32) -> Option<TriangleHit> {
+    brute_without(tris, ray, t_max, None)
+}
+
+/// `brute` with input triangle `skip` left out.
+fn brute_without(tris: &[[Vec3A; 3]], ray: &Ray, t_max: f32, skip: Option<u32>) -> Option<TriangleHit> {
     let mut best: Option<TriangleHit> = None;
-    for (i, tri) in tris.iter().enumerate() {
+    for (i, tri) in tris.iter().enumerate().filter(|&(i, _)| Some(i as u32) != skip) {
         let tm = best.map_or(t_max, |b| b.t);
         if let Some((t, b1, b2)) = intersect_triangle(ray, tri, tm) {
-            best = Some(TriangleHit { t, prim: i as u32, b1, b2, v: *tri });
+            best = Some(TriangleHit { t, prim: i as u32, b1, b2, v: *tri, slot: NO_TRIANGLE });
         }
     }
     best
@@ -242,6 +247,36 @@ fn large_mesh_matches_brute_force() {
         let (got, want) = (accel.intersect(&ray, t_max), brute(&tris, &ray, t_max));
         assert_eq!(got.map(|h| h.t), want.map(|h| h.t), "ray {i}");
         assert_eq!(accel.occluded(&ray, t_max), want.is_some(), "ray {i}");
+    }
+}
+
+/// `Ray::skip`: a ray skipping the slot of its closest hit, or of any other
+/// triangle, finds exactly what brute force finds without that triangle,
+/// for closest hit and occlusion.
+#[test]
+fn skipped_triangles_and_only_they_are_not_tested() {
+    let mut rng = Rand::new(11);
+    for (name, tris) in comparison_scenes() {
+        let accel = Accel::build(&tris);
+        let mut with_hit = 0;
+        for i in 0..2000 {
+            let (ray, t_max) = random_ray(&mut rng);
+            let Some(first) = accel.intersect(&ray, t_max) else {
+                continue;
+            };
+            with_hit += 1;
+            assert_eq!(accel.slot(first.prim), first.slot, "{name} ray {i}");
+            let other = ((first.prim as usize + 1 + rng.below(tris.len() - 1)) % tris.len()) as u32;
+            for (skip, prim) in [([first.slot, NO_TRIANGLE], first.prim), ([NO_TRIANGLE, accel.slot(other)], other)] {
+                let r = Ray { skip, ..ray };
+                let want = brute_without(&tris, &ray, t_max, Some(prim));
+                let got = accel.intersect(&r, t_max);
+                assert_eq!(got.map(|h| h.t), want.map(|h| h.t), "{name} ray {i} skipping {prim}");
+                assert!(got.is_none_or(|h| h.prim != prim), "{name} ray {i} hit skipped {prim}");
+                assert_eq!(accel.occluded(&r, t_max), want.is_some(), "{name} ray {i} skipping {prim}");
+            }
+        }
+        assert!(with_hit > 500, "{name}: only {with_hit} rays with a hit");
     }
 }
 

@@ -11,7 +11,7 @@ pub use json::{load_scene, parse_scene, LoadError};
 
 use crate::accel::Accel;
 use crate::camera::Camera;
-use crate::geometry::{barycentric_error, Frame, Ray, SurfacePoint};
+use crate::geometry::{barycentric_error, Frame, Ray, SurfacePoint, NO_TRIANGLE};
 use crate::light::{AreaLight, EnvironmentLight, Light, PointLight};
 use crate::materials::Bsdf;
 use crate::sampling::AliasTable;
@@ -101,19 +101,21 @@ pub struct SurfaceInteraction {
     pub material: u32,
     /// The area light of this triangle, if it emits.
     pub light: Option<u32>,
+    /// The triangle's BVH slot (`NO_TRIANGLE` for a path's end points).
+    pub slot: u32,
 }
 
 impl SurfaceInteraction {
     /// A ray leaving the surface in direction `w`, offset off the surface.
     #[inline]
     pub fn spawn_ray(&self, w: Vec3A) -> Ray {
-        Ray::new(self.point().spawn_origin(w), w)
+        self.point().spawn_ray(w)
     }
 
     /// The point with its error bound and geometric normal, for visibility.
     #[inline]
     pub fn point(&self) -> SurfacePoint {
-        SurfacePoint { p: self.p, p_error: self.p_error, n: self.ng }
+        SurfacePoint { p: self.p, p_error: self.p_error, n: self.ng, slot: self.slot }
     }
 
     /// Veach's shading-normal correction for adjoint (importance) transport,
@@ -224,6 +226,7 @@ impl SceneBuilder {
                             le: le.clone(),
                             two_sided: *two_sided,
                             prim: start + k as u32,
+                            slot: NO_TRIANGLE,
                         }));
                         light_names.push(format!("{name} (triangle {k})"));
                     }
@@ -240,6 +243,11 @@ impl SceneBuilder {
             mesh.indices[i - records[m].start as usize].map(|j| mesh.positions[j as usize])
         };
         let accel = Accel::build_with(start as usize, vertices);
+        for light in &mut lights {
+            if let Light::Area(a) = light {
+                a.slot = accel.slot(a.prim);
+            }
+        }
         let degenerate: Vec<(u32, [Vec3A; 3])> =
             (0..start).filter(|&i| !accel.contains(i)).map(|i| (i, vertices(i as usize))).collect();
         // Positions now live in the BVH; keep indices and normals of the
@@ -317,6 +325,7 @@ impl Scene {
             wo: -ray.d,
             material: m.material,
             light: m.lights.get(k).copied().filter(|&l| l != NO_LIGHT),
+            slot: hit.slot,
         })
     }
 
@@ -327,7 +336,7 @@ impl Scene {
         let d = b.p - a.p;
         let o = a.spawn_origin(d);
         let target = b.spawn_origin(-d);
-        let ray = Ray::new(o, target - o);
+        let ray = Ray { o, d: target - o, skip: [a.slot, b.slot] };
         count_ray();
         // pbrt-v4's ShadowEpsilon: stop just short of the far end.
         !self.accel.occluded(&ray, 1.0 - 1e-4)
@@ -336,7 +345,7 @@ impl Scene {
     /// Whether a ray leaving a point towards infinity escapes.
     #[inline]
     pub fn escapes(&self, a: SurfacePoint, w: Vec3A) -> bool {
-        let ray = Ray::new(a.spawn_origin(w), w);
+        let ray = a.spawn_ray(w);
         count_ray();
         !self.accel.occluded(&ray, f32::INFINITY)
     }
