@@ -1,0 +1,158 @@
+//! Writing one compressed wide node: child slots by ray octant, quantized
+//! child boxes and metadata (Ylitie et al. 2017, sec. 3.1, in obvhs's
+//! `CwBvhNode` layout).
+
+use super::{PrimRef, Range, BRANCHING, MAX_LEAF_PRIMS};
+use glam::Vec3A;
+use obvhs::{aabb::Aabb, cwbvh::node::CwBvhNode};
+
+/// Writes the wide node with box `aabb` and `children` (ranges of `refs`
+/// in memory order, covering the node's) into `nodes[slot]`: slots by ray
+/// octant, quantized boxes, metadata; reserves nodes for its inner
+/// children. CWBVH addresses a node's leaf primitives by offsets 0..24
+/// from primitive_base_idx, so the leaf children's primitives are moved to
+/// the front of the node's range and the inner children's ranges up behind them, each as a
+/// block. Returns the inner children (index, moved range, reserved slot) in
+/// memory order.
+pub(super) fn emit(
+    refs: &mut [PrimRef],
+    base: usize,
+    aabb: Aabb,
+    children: &[Range],
+    slot: usize,
+    nodes: &mut Vec<CwBvhNode>,
+) -> Vec<(usize, Range, usize)> {
+    let is_leaf = |c: &Range| c.len() <= MAX_LEAF_PRIMS;
+    let first = children[0].start;
+    let leaf_prims: Vec<PrimRef> =
+        children.iter().filter(|c| is_leaf(c)).flat_map(|c| refs[c.start..c.end].iter().copied()).collect();
+    let mut moved = children.to_vec();
+    let mut next = first + leaf_prims.len();
+    let mut offsets = [0u8; BRANCHING];
+    let mut leaf_offset = 0;
+    for (c, child) in moved.iter_mut().enumerate() {
+        if is_leaf(child) {
+            offsets[c] = leaf_offset as u8;
+            leaf_offset += child.len();
+        } else {
+            let len = child.len();
+            (child.start, child.end) = (next, next + len);
+            next += len;
+        }
+    }
+    // Later blocks first: each moves up (or stays), onto space already free.
+    for (old, new) in children.iter().zip(&moved).rev().filter(|(c, _)| !is_leaf(c)) {
+        refs.copy_within(old.start..old.end, new.start);
+    }
+    refs[first..first + leaf_prims.len()].copy_from_slice(&leaf_prims);
+
+    let slot_of = octant_slots(&aabb, children);
+    let e = quantization_step(aabb.max - aabb.min);
+    let rcp_e = 1.0 / e;
+    let mut wide = CwBvhNode {
+        p: aabb.min.into(),
+        e: e.to_array().map(|c| (c.to_bits() >> 23) as u8),
+        child_base_idx: nodes.len() as u32,
+        primitive_base_idx: (base + first) as u32,
+        ..CwBvhNode::default()
+    };
+    let mut by_slot: [Option<usize>; BRANCHING] = [None; BRANCHING];
+    for (c, &s) in slot_of.iter().enumerate() {
+        by_slot[s] = Some(c);
+    }
+    // Leaf children: the count in unary in the top 3 bits, the offset of
+    // the first primitive from primitive_base_idx below. Inner children:
+    // 001 then 24 + slot; their nodes follow in slot order.
+    let mut inner_slots = [0usize; BRANCHING];
+    let mut inner = 0;
+    for (s, c) in by_slot.iter().enumerate() {
+        let Some(c) = *c else { continue };
+        let child = &children[c];
+        // Rounded outward on a grid of power-of-two step, so the dequantized
+        // box p + q e holds the child's box (up to the rounding of b - p
+        // that `intersect_node`'s slack covers).
+        let b = child.bounds;
+        let lo = ((b.min - aabb.min) * rcp_e).floor().clamp(Vec3A::ZERO, Vec3A::splat(255.0));
+        let hi = ((b.max - aabb.min) * rcp_e).ceil().clamp(Vec3A::ZERO, Vec3A::splat(255.0));
+        wide.child_min_x[s] = lo.x as u8;
+        wide.child_min_y[s] = lo.y as u8;
+        wide.child_min_z[s] = lo.z as u8;
+        wide.child_max_x[s] = hi.x as u8;
+        wide.child_max_y[s] = hi.y as u8;
+        wide.child_max_z[s] = hi.z as u8;
+        if is_leaf(child) {
+            wide.child_meta[s] = offsets[c] | ((1u8 << child.len()) - 1) << 5;
+        } else {
+            wide.imask |= 1 << s;
+            wide.child_meta[s] = (24 + s as u8) | 0b0010_0000;
+            inner_slots[c] = nodes.len() + inner;
+            inner += 1;
+        }
+    }
+    nodes.resize(nodes.len() + inner, CwBvhNode::default());
+    nodes[slot] = wide;
+    (0..children.len()).filter(|&c| !is_leaf(&children[c])).map(|c| (c, moved[c], inner_slots[c])).collect()
+}
+
+/// The grid step per axis for a node of extent `extent`: the smallest power
+/// of two e with 255 e >= extent, computed as obvhs does
+/// (2^ceil(log2(extent / 255))), then doubled where its rounding fell short
+/// (extent just above 255 times a power of two), so no child coordinate is
+/// clamped at 255.
+fn quantization_step(extent: Vec3A) -> Vec3A {
+    let extent = extent.max(Vec3A::splat(1e-20));
+    let e = (extent * (1.0 / 255.0)).log2().ceil().exp2();
+    Vec3A::select((e * 255.0).cmplt(extent), e * 2.0, e)
+}
+
+/// Assigns the children to the 8 slots by ray octant (Ylitie et al. 2017,
+/// sec. 3.2, "ordering the children"), as obvhs's `order_children`: the cost
+/// of child c in slot s is the dot product of octant s's diagonal direction
+/// with the vector from the node's centre to c's centre, and the cheapest
+/// (child, free slot) pair is taken until all are placed (greedy; the paper
+/// suggests an auction, obvhs found greedy almost as good). A ray of octant
+/// s then visits the children in slot order xor s roughly front to back.
+/// Returns each child's slot.
+fn octant_slots(node: &Aabb, children: &[Range]) -> Vec<usize> {
+    let centre = node.center();
+    // cost[c][s]; slot s's direction: bit 2 of s negates x, bit 1 y, bit 0
+    // z, matching the traversal's oct_inv4.
+    let sign = |s: usize, bit: usize| if s & bit != 0 { -1.0 } else { 1.0 };
+    let mut cost = [[0.0f32; BRANCHING]; BRANCHING];
+    for (row, child) in cost.iter_mut().zip(children) {
+        let v = child.bounds.center() - centre;
+        for (s, c) in row.iter_mut().enumerate() {
+            *c = Vec3A::new(sign(s, 0b100), sign(s, 0b010), sign(s, 0b001)).dot(v);
+        }
+    }
+    let mut slot_of = vec![usize::MAX; children.len()];
+    let mut filled = [false; BRANCHING];
+    for _ in 0..children.len() {
+        let mut best: Option<(usize, usize, f32)> = None;
+        for c in (0..children.len()).filter(|&c| slot_of[c] == usize::MAX) {
+            for s in (0..BRANCHING).filter(|&s| !filled[s]) {
+                if best.is_none_or(|(_, _, b)| cost[c][s] < b) {
+                    best = Some((c, s, cost[c][s]));
+                }
+            }
+        }
+        let (c, s, _) = best.expect("a free slot for every child");
+        filled[s] = true;
+        slot_of[c] = s;
+    }
+    slot_of
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quantization_step_covers_the_extent() {
+        for x in [0.0f32, 1e-30, 1.0, 255.0, 255.0 * 4.0, 255.0f32.next_up() * 4.0, 3.7e5, 1e30] {
+            let e = quantization_step(Vec3A::splat(x));
+            assert!(e.x * 255.0 >= x && e.x.to_bits() & 0x807f_ffff == 0, "{x}: {e}");
+            assert!(x == 0.0 || e.x * 127.5 < x.max(1e-20), "{x}: {e} not the smallest");
+        }
+    }
+}

@@ -1,0 +1,258 @@
+//! SAH splits of a range of primitives in two: binned (Wald 2007) on the
+//! three centroid axes and on size classes, or swept exactly for small
+//! ranges; and the in-place partition that applies one.
+
+use super::{PrimRef, Range};
+use glam::Vec3A;
+use obvhs::aabb::Aabb;
+use rayon::prelude::*;
+
+/// Bins per axis for the binned SAH.
+const BINS: usize = 32;
+
+/// Ranges of at least twice this many primitives are binned in parallel
+/// chunks of this size.
+const PARALLEL_CHUNK: usize = 32 * 1024;
+
+/// A SAH split: the primitives below the plane on `axis` go left.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Split {
+    axis: usize,
+    plane: Plane,
+    cost: f32,
+}
+
+#[derive(Clone, Copy, Debug)]
+enum Plane {
+    /// Binned: a bin below `bin` of `grid`.
+    Bin { grid: Grid, bin: usize },
+    /// Swept: a key (`sweep_key`) below this one.
+    Key(f32),
+}
+
+impl Split {
+    #[inline(always)]
+    fn goes_left(&self, p: &PrimRef) -> bool {
+        match self.plane {
+            Plane::Bin { grid, bin } => grid.bin(p, self.axis) < bin,
+            Plane::Key(key) => sweep_key(p, self.axis) < key,
+        }
+    }
+}
+
+/// Bins on 3 spatial axes and one of size. The spatial bins are Wald's
+/// (2007): the (doubled) centroid's cell on a grid of `BINS` over the
+/// centroids' bounds. The size axis classes primitives by octave of their
+/// box's surface area relative to the range's (bin k: 2^-k-1 < ratio <=
+/// 2^-k): a plane through the centroids cannot cut large primitives that
+/// enclose small ones from them (the walls of a room around its furniture,
+/// whose centroids lie on all sides of it), while a size split can, and the
+/// SAH takes it only where it is cheaper.
+#[derive(Clone, Copy, Debug)]
+struct Grid {
+    origin: Vec3A,
+    scale: Vec3A,
+    /// 1 / the range's half area; 0 for a flat range (size bin 0).
+    rcp_area: f32,
+}
+
+/// Bin axes: x, y, z and size.
+const AXES: usize = 4;
+
+impl Grid {
+    fn new(range: &Range) -> Self {
+        let extent = range.centroids.max - range.centroids.min;
+        // Just under BINS / extent, so the largest centroid lands in the last
+        // bin; zero on a flat axis (every centroid in bin 0).
+        let scale = Vec3A::select(extent.cmpgt(Vec3A::ZERO), (BINS as f32 * 0.9999) / extent, Vec3A::ZERO);
+        let area = range.bounds.half_area();
+        Self { origin: range.centroids.min, scale, rcp_area: if area > 0.0 { 1.0 / area } else { 0.0 } }
+    }
+
+    #[inline(always)]
+    fn bins(&self, p: &PrimRef) -> [usize; AXES] {
+        let b = p.bounds();
+        let c = ((b.min + b.max - self.origin) * self.scale).min(Vec3A::splat((BINS - 1) as f32));
+        // The octave from the float's exponent: 127 - exponent of a ratio
+        // in (0, 1]; a zero ratio (or a flat range) in the last bin / bin 0.
+        let ratio = b.half_area() * self.rcp_area;
+        let octave = 127i32.saturating_sub((ratio.to_bits() >> 23) as i32).clamp(0, BINS as i32 - 1);
+        [c.x as usize, c.y as usize, c.z as usize, octave as usize]
+    }
+
+    /// The bin of `p` on one axis, as `bins` computes it.
+    #[inline(always)]
+    fn bin(&self, p: &PrimRef, axis: usize) -> usize {
+        self.bins(p)[axis]
+    }
+
+    /// Whether the size axis can separate anything (else only 3 are binned).
+    fn sized(&self) -> bool {
+        self.rcp_area > 0.0
+    }
+}
+
+#[derive(Clone, Copy)]
+struct Bins {
+    bounds: [[Aabb; BINS]; AXES],
+    counts: [[u32; BINS]; AXES],
+}
+
+impl Bins {
+    fn empty() -> Self {
+        Self { bounds: [[Aabb::empty(); BINS]; AXES], counts: [[0; BINS]; AXES] }
+    }
+
+    fn fill(refs: &[PrimRef], grid: &Grid) -> Self {
+        let mut bins = Self::empty();
+        for p in refs {
+            let b = p.bounds();
+            for (axis, bin) in grid.bins(p).into_iter().enumerate() {
+                bins.bounds[axis][bin] = bins.bounds[axis][bin].union(&b);
+                bins.counts[axis][bin] += 1;
+            }
+        }
+        bins
+    }
+
+    /// Exact in any order (min, max and integer sums), so parallel binning
+    /// gives the serial result.
+    fn merge(mut self, other: Self) -> Self {
+        for axis in 0..AXES {
+            for bin in 0..BINS {
+                self.bounds[axis][bin] = self.bounds[axis][bin].union(&other.bounds[axis][bin]);
+                self.counts[axis][bin] += other.counts[axis][bin];
+            }
+        }
+        self
+    }
+}
+
+/// Ranges of at most this many primitives are split by a full SAH sweep
+/// over the sorted keys (exact), larger ones by binning.
+const SWEEP_PRIMS: usize = 16;
+
+/// The cheapest SAH split of `range`, or None if neither a plane nor a size
+/// class separates its primitives (all centroids coincide and all sizes are
+/// alike).
+pub(super) fn sah_split(refs: &[PrimRef], range: &Range) -> Option<Split> {
+    let refs = &refs[range.start..range.end];
+    if refs.len() <= SWEEP_PRIMS {
+        swept_split(refs)
+    } else {
+        binned_split(refs, range)
+    }
+}
+
+fn binned_split(refs: &[PrimRef], range: &Range) -> Option<Split> {
+    let grid = Grid::new(range);
+    let bins = if refs.len() >= 2 * PARALLEL_CHUNK {
+        refs.par_chunks(PARALLEL_CHUNK).map(|c| Bins::fill(c, &grid)).reduce(Bins::empty, Bins::merge)
+    } else {
+        Bins::fill(refs, &grid)
+    };
+    let mut best: Option<Split> = None;
+    for axis in 0..AXES {
+        if if axis < 3 { grid.scale[axis] == 0.0 } else { !grid.sized() } {
+            continue;
+        }
+        // right_cost[b]: area x count of bins b.. (the right side of a plane
+        // before bin b).
+        let mut right_cost = [0.0f32; BINS];
+        let (mut bounds, mut count) = (Aabb::empty(), 0u32);
+        for b in (1..BINS).rev() {
+            bounds = bounds.union(&bins.bounds[axis][b]);
+            count += bins.counts[axis][b];
+            right_cost[b] = if count == 0 { f32::INFINITY } else { bounds.half_area() * count as f32 };
+        }
+        let (mut bounds, mut count) = (Aabb::empty(), 0u32);
+        for (b, right) in right_cost.iter().enumerate().skip(1) {
+            bounds = bounds.union(&bins.bounds[axis][b - 1]);
+            count += bins.counts[axis][b - 1];
+            if count == 0 {
+                continue;
+            }
+            let cost = bounds.half_area() * count as f32 + right;
+            if best.is_none_or(|s| cost < s.cost) {
+                best = Some(Split { axis, plane: Plane::Bin { grid, bin: b }, cost });
+            }
+        }
+    }
+    best.filter(|s| s.cost.is_finite())
+}
+
+/// What a sweep sorts by: the (doubled) centroid on axes 0-2, the box's
+/// half area on axis 3 (the size axis).
+#[inline(always)]
+fn sweep_key(p: &PrimRef, axis: usize) -> f32 {
+    let b = p.bounds();
+    if axis < 3 {
+        (b.min + b.max)[axis]
+    } else {
+        b.half_area()
+    }
+}
+
+/// The full SAH sweep of a small range: on each axis the primitives sorted
+/// by key, every plane between two distinct keys.
+fn swept_split(refs: &[PrimRef]) -> Option<Split> {
+    let n = refs.len();
+    let mut best: Option<Split> = None;
+    let mut order = [(0.0f32, 0usize); SWEEP_PRIMS];
+    let mut right_cost = [0.0f32; SWEEP_PRIMS];
+    for axis in 0..AXES {
+        for (i, p) in refs.iter().enumerate() {
+            order[i] = (sweep_key(p, axis), i);
+        }
+        order[..n].sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let mut bounds = Aabb::empty();
+        for i in (1..n).rev() {
+            bounds = bounds.union(&refs[order[i].1].bounds());
+            right_cost[i] = bounds.half_area() * (n - i) as f32;
+        }
+        let mut bounds = Aabb::empty();
+        for i in 1..n {
+            bounds = bounds.union(&refs[order[i - 1].1].bounds());
+            if order[i - 1].0 == order[i].0 {
+                continue;
+            }
+            let cost = bounds.half_area() * i as f32 + right_cost[i];
+            if best.is_none_or(|s| cost < s.cost) {
+                best = Some(Split { axis, plane: Plane::Key(order[i].0), cost });
+            }
+        }
+    }
+    best
+}
+
+/// Partitions `range` in place by `split` (Hoare's scheme: deterministic,
+/// each primitive classified once) and returns both sides with their bounds.
+fn partition(refs: &mut [PrimRef], range: &Range, split: &Split) -> (Range, Range) {
+    let empty = |start, end| Range { start, end, bounds: Aabb::empty(), centroids: Aabb::empty() };
+    let (mut left, mut right) = (empty(range.start, range.start), empty(range.end, range.end));
+    let (mut i, mut j) = (range.start, range.end);
+    while i < j {
+        if split.goes_left(&refs[i]) {
+            left.grow(&refs[i]);
+            i += 1;
+        } else {
+            j -= 1;
+            refs.swap(i, j);
+            right.grow(&refs[j]);
+        }
+    }
+    left.end = i;
+    right.start = i;
+    (left, right)
+}
+
+/// `range` split by `split`, or at its middle (object median) if None.
+pub(super) fn split_in_two(refs: &mut [PrimRef], range: &Range, split: Option<Split>) -> (Range, Range) {
+    match split {
+        Some(s) => partition(refs, range, &s),
+        None => {
+            let mid = range.start + range.len() / 2;
+            (Range::of(refs, range.start, mid), Range::of(refs, mid, range.end))
+        }
+    }
+}
