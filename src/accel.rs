@@ -246,7 +246,7 @@ impl Accel {
 /// The traversal stack: node groups still to visit. Wide BVHs are shallow,
 /// so 32 entries in place suffice for all but pathological trees, which
 /// spill to the heap instead of losing nodes. (A `SmallVec`, not an array:
-/// its inline storage is not zeroed per ray, which cost 4 % of all
+/// its inline storage is not zeroed per ray, which cost 3 % of all
 /// instructions of a Cornell box render.)
 type GroupStack = SmallVec<[(u32, u32); 32]>;
 
