@@ -77,7 +77,7 @@ impl Accel {
     where
         F: Fn(usize) -> [Vec3A; 3] + Sync,
     {
-        assert!(len < u32::MAX as usize, "{len} triangles: at most 2^32 - 2");
+        assert!(len <= (u32::MAX - 32) as usize, "{len} triangles: at most 2^32 - 33");
         // Degenerate triangles get an empty box and are dropped in place.
         let mut refs: Vec<PrimRef> = (0..len)
             .into_par_iter()
@@ -158,10 +158,7 @@ impl Accel {
         let pre = PreparedRay::new(ray)?;
         let mut best_t = t_max;
         let mut best: Option<(u32, f32, f32)> = None;
-        self.traverse(&pre, &mut best_t, |slot, best_t| {
-            if ray.skip.contains(&slot) {
-                return false;
-            }
+        self.traverse(&pre, ray.skip, &mut best_t, |slot, best_t| {
             if let Some((t, b1, b2)) = pre.intersect(&self.tris[slot as usize], *best_t) {
                 *best_t = t;
                 best = Some((slot, b1, b2));
@@ -186,8 +183,8 @@ impl Accel {
         };
         let mut t_max = t_max;
         let mut hit = false;
-        self.traverse(&pre, &mut t_max, |slot, t_max| {
-            hit = !ray.skip.contains(&slot) && pre.intersect(&self.tris[slot as usize], *t_max).is_some();
+        self.traverse(&pre, ray.skip, &mut t_max, |slot, t_max| {
+            hit = pre.intersect(&self.tris[slot as usize], *t_max).is_some();
             hit
         });
         hit
@@ -199,9 +196,11 @@ impl Accel {
     /// visited leaf to `leaf`, which may shorten `t_max` and returns true to
     /// stop. A group is a base index and a hit mask: for nodes, inner
     /// children's bits (top byte, by traversal priority) over the node's
-    /// `imask`; for triangles, one bit per slot.
+    /// `imask`; for triangles, one bit per slot. The slots in `skip` are
+    /// cleared from the triangle masks (no branch per triangle, whose
+    /// outcome the CPU could not predict).
     #[inline(always)]
-    fn traverse(&self, r: &PreparedRay, t_max: &mut f32, mut leaf: impl FnMut(u32, &mut f32) -> bool) {
+    fn traverse(&self, r: &PreparedRay, skip: [u32; 2], t_max: &mut f32, mut leaf: impl FnMut(u32, &mut f32) -> bool) {
         if self.bvh.nodes.is_empty() {
             return;
         }
@@ -224,7 +223,8 @@ impl Accel {
                 let node = &self.bvh.nodes[child as usize];
                 let hit_mask = intersect_node(node, r, *t_max, oct_inv4);
                 nodes = (node.child_base_idx, (hit_mask & 0xff00_0000) | node.imask as u32);
-                tris = (node.primitive_base_idx, hit_mask & 0x00ff_ffff);
+                let base = node.primitive_base_idx;
+                tris = (base, hit_mask & 0x00ff_ffff & !(group_bit(skip[0], base) | group_bit(skip[1], base)));
             }
             while tris.1 != 0 {
                 let i = 31 - tris.1.leading_zeros();
@@ -241,6 +241,15 @@ impl Accel {
             }
         }
     }
+}
+
+/// The triangle-mask bit of slot `slot` in a group based at `base`, or 0 if
+/// the group does not hold it (`NO_TRIANGLE` included: slots stay below
+/// 2^32 - 32).
+#[inline(always)]
+fn group_bit(slot: u32, base: u32) -> u32 {
+    let rel = slot.wrapping_sub(base);
+    ((rel < 24) as u32) << (rel & 31)
 }
 
 /// The traversal stack: node groups still to visit. Wide BVHs are shallow,
