@@ -54,13 +54,11 @@ pub struct Accel {
     /// Triangles in BVH slot order: `tris[s]` is input triangle
     /// `bvh.primitive_indices[s]`.
     tris: Vec<SoaTriangle>,
-    /// Input index -> slot in `tris`; `NO_SLOT` for a degenerate triangle.
-    slots: Vec<u32>,
+    /// Input indices of the degenerate triangles, left out (ascending).
+    degenerate: Vec<u32>,
     /// Number of input triangles, degenerate ones included.
     input_len: usize,
 }
-
-const NO_SLOT: u32 = NO_TRIANGLE;
 
 impl Accel {
     pub fn build(tris: &[[Vec3A; 3]]) -> Self {
@@ -91,36 +89,55 @@ impl Accel {
                 PrimRef::new(b, i as u32)
             })
             .collect();
+        let degenerate = refs.iter().filter(|r| !r.is_valid()).map(PrimRef::index).collect();
         refs.retain(|r| r.is_valid());
         let bvh = wide_bvh::build(refs);
         let sorted: Vec<SoaTriangle> =
             bvh.primitive_indices.par_iter().map(|&i| SoaTriangle::new(&tri(i as usize))).collect();
-        let mut slots = vec![NO_SLOT; len];
-        for (s, &i) in bvh.primitive_indices.iter().enumerate() {
+        Self { bvh, tris: sorted, degenerate, input_len: len }
+    }
+
+    /// The input indices of the degenerate triangles, which the BVH leaves
+    /// out (ascending).
+    pub fn degenerate(&self) -> &[u32] {
+        &self.degenerate
+    }
+
+    /// The vertices of the triangle in BVH slot `slot` as given to `build`
+    /// (bit for bit).
+    #[inline]
+    pub fn vertices(&self, slot: u32) -> [Vec3A; 3] {
+        self.tris[slot as usize].vertices()
+    }
+
+    /// Input index -> BVH slot (what `Ray::skip` and `TriangleHit::slot`
+    /// hold), `NO_TRIANGLE` for a degenerate triangle. Made on demand, 4
+    /// bytes per triangle, for exporters and tests: rendering needs no
+    /// such map (a hit reports both), and keeping one would add to the
+    /// memory peak.
+    pub fn slot_map(&self) -> Vec<u32> {
+        let mut slots = vec![NO_TRIANGLE; self.input_len];
+        for (s, &i) in self.bvh.primitive_indices.iter().enumerate() {
             slots[i as usize] = s as u32;
         }
-        Self { bvh, tris: sorted, slots, input_len: len }
+        slots
     }
 
-    /// The vertices of input triangle `prim` as given to `build` (bit for
-    /// bit), or None for a degenerate one (not stored).
-    #[inline]
-    pub fn triangle(&self, prim: u32) -> Option<[Vec3A; 3]> {
-        let s = *self.slots.get(prim as usize)?;
-        (s != NO_SLOT).then(|| self.tris[s as usize].vertices())
-    }
-
-    /// The BVH slot of input triangle `prim` (what `Ray::skip` and
-    /// `TriangleHit::slot` hold), or `NO_TRIANGLE` for a degenerate one.
-    #[inline]
-    pub fn slot(&self, prim: u32) -> u32 {
-        self.slots.get(prim as usize).copied().unwrap_or(NO_SLOT)
-    }
-
-    /// Whether input triangle `prim` is in the BVH (not degenerate).
-    #[inline]
-    pub fn contains(&self, prim: u32) -> bool {
-        self.slots.get(prim as usize).is_some_and(|&s| s != NO_SLOT)
+    /// The slots of a few input triangles (`slot_map` for just these: one
+    /// pass over the slots, memory in proportion to `prims`).
+    pub fn slots_of(&self, prims: &[u32]) -> Vec<u32> {
+        let mut order: Vec<(u32, usize)> = prims.iter().copied().zip(0..).collect();
+        order.sort_unstable();
+        let mut slots = vec![NO_TRIANGLE; prims.len()];
+        if !order.is_empty() {
+            for (s, &i) in self.bvh.primitive_indices.iter().enumerate() {
+                let first = order.partition_point(|&(p, _)| p < i);
+                for &(_, k) in order[first..].iter().take_while(|&&(p, _)| p == i) {
+                    slots[k] = s as u32;
+                }
+            }
+        }
+        slots
     }
 
     /// Heap bytes held (nodes, triangles, index maps), for memory reports.
@@ -129,7 +146,7 @@ impl Accel {
         self.bvh.nodes.capacity() * size_of::<CwBvhNode>()
             + self.bvh.primitive_indices.capacity() * 4
             + self.tris.capacity() * size_of::<SoaTriangle>()
-            + self.slots.capacity() * 4
+            + self.degenerate.capacity() * 4
     }
 
     /// Number of input triangles (degenerate ones included, though they are
@@ -170,7 +187,7 @@ impl Accel {
             prim: self.bvh.primitive_indices[slot as usize],
             b1,
             b2,
-            v: self.tris[slot as usize].vertices(),
+            v: self.vertices(slot),
             slot,
         })
     }
@@ -607,7 +624,33 @@ mod tests {
         assert!(tris.iter().all(is_degenerate));
         let a = Accel::build(&tris);
         assert_eq!(a.len(), 3);
+        assert_eq!(a.degenerate(), [0, 1, 2]);
+        assert_eq!(a.slot_map(), [NO_TRIANGLE; 3]);
         let r = Ray::new(Vec3A::new(0.5, 0.0, 1.0), -Vec3A::Z);
         assert!(a.intersect(&r, f32::INFINITY).is_none());
+    }
+
+    /// `slots_of` (area lights) and `slot_map` (exporters) agree, for
+    /// unsorted and repeated indices and a degenerate triangle; every slot
+    /// holds its input triangle.
+    #[test]
+    fn slot_lookups_agree() {
+        let mut tris: Vec<[Vec3A; 3]> = (0..40)
+            .map(|i| {
+                let o = Vec3A::new((i % 7) as f32, (i / 7) as f32, (i % 3) as f32);
+                [o, o + Vec3A::X, o + Vec3A::Y]
+            })
+            .collect();
+        tris[17] = [Vec3A::ZERO; 3];
+        let a = Accel::build(&tris);
+        let map = a.slot_map();
+        assert_eq!(a.degenerate(), [17]);
+        assert_eq!(map[17], NO_TRIANGLE);
+        for (i, &s) in map.iter().enumerate().filter(|&(i, _)| i != 17) {
+            assert_eq!(a.vertices(s), tris[i], "triangle {i}");
+        }
+        let prims = [39, 3, 17, 3, 0, 22];
+        assert_eq!(a.slots_of(&prims), prims.map(|p| map[p as usize]));
+        assert!(a.slots_of(&[]).is_empty());
     }
 }

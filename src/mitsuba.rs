@@ -103,8 +103,7 @@ pub fn export(scene: &Scene, dir: &Path, spp: u32) -> Result<usize> {
         }
     }
     let mut groups: Vec<Group> = Vec::new();
-    for i in 0..scene.triangle_count() {
-        let (v, ns, material, light) = scene.triangle(i);
+    for (v, ns, material, light) in scene.triangles() {
         let emission = light.map(|l| match &scene.lights[l as usize] {
             Light::Area(a) => a.le.clone(),
             _ => unreachable!("a triangle's light is an area light"),

@@ -243,13 +243,18 @@ impl SceneBuilder {
             mesh.indices[i - records[m].start as usize].map(|j| mesh.positions[j as usize])
         };
         let accel = Accel::build_with(start as usize, vertices);
-        for light in &mut lights {
-            if let Light::Area(a) = light {
-                a.slot = accel.slot(a.prim);
+        fn area(l: &mut Light) -> Option<&mut AreaLight> {
+            match l {
+                Light::Area(a) => Some(a),
+                _ => None,
             }
         }
+        let prims: Vec<u32> = lights.iter_mut().filter_map(area).map(|a| a.prim).collect();
+        for (a, slot) in lights.iter_mut().filter_map(area).zip(accel.slots_of(&prims)) {
+            a.slot = slot;
+        }
         let degenerate: Vec<(u32, [Vec3A; 3])> =
-            (0..start).filter(|&i| !accel.contains(i)).map(|i| (i, vertices(i as usize))).collect();
+            accel.degenerate().iter().map(|&i| (i, vertices(i as usize))).collect();
         // Positions now live in the BVH; keep indices and normals of the
         // meshes that have normals, drop the rest.
         for (record, (mesh, ..)) in records.iter_mut().zip(self.meshes) {
@@ -389,18 +394,26 @@ impl Scene {
         self.accel.len()
     }
 
-    /// Triangle `i` as built (scene exporters): vertices in winding order,
-    /// per-vertex shading normals, material, area light.
-    pub fn triangle(&self, i: usize) -> ([Vec3A; 3], Option<[Vec3A; 3]>, u32, Option<u32>) {
-        let prim = i as u32;
-        let v = self.accel.triangle(prim).unwrap_or_else(|| {
-            let d = self.degenerate.binary_search_by_key(&prim, |d| d.0).expect("triangle index in range");
-            self.degenerate[d].1
-        });
-        let m = &self.meshes[mesh_index(&self.meshes, prim)];
-        let k = i - m.start as usize;
-        let ns = m.shading.as_ref().map(|(indices, normals)| indices[k].map(|j| normals[j as usize]));
-        (v, ns, m.material, m.lights.get(k).copied().filter(|&l| l != NO_LIGHT))
+    /// The triangles as built, in input order (scene exporters): vertices
+    /// in winding order, per-vertex shading normals, material, area light.
+    /// Makes the input -> BVH slot map (4 bytes per triangle) for the
+    /// iteration.
+    pub fn triangles(&self) -> impl Iterator<Item = ([Vec3A; 3], Option<[Vec3A; 3]>, u32, Option<u32>)> + '_ {
+        let slots = self.accel.slot_map();
+        (0..self.triangle_count()).map(move |i| {
+            let prim = i as u32;
+            let v = match slots[i] {
+                NO_TRIANGLE => {
+                    let d = self.degenerate.binary_search_by_key(&prim, |d| d.0).expect("a degenerate triangle");
+                    self.degenerate[d].1
+                }
+                s => self.accel.vertices(s),
+            };
+            let m = &self.meshes[mesh_index(&self.meshes, prim)];
+            let k = i - m.start as usize;
+            let ns = m.shading.as_ref().map(|(indices, normals)| indices[k].map(|j| normals[j as usize]));
+            (v, ns, m.material, m.lights.get(k).copied().filter(|&l| l != NO_LIGHT))
+        })
     }
 
     /// Heap bytes of the geometry (BVH, triangles, shading data), for
@@ -456,8 +469,8 @@ mod tests {
         let scene = b.build();
         assert_eq!(scene.triangle_count(), want.len());
         assert_eq!(scene.lights.len(), 2);
-        for (i, (v, ns, material, emits, t)) in want.iter().enumerate() {
-            let got = scene.triangle(i);
+        assert_eq!(scene.triangles().count(), want.len());
+        for (i, ((v, ns, material, emits, t), got)) in want.iter().zip(scene.triangles()).enumerate() {
             assert_eq!((got.0, got.1, got.2), (*v, *ns, *material), "triangle {i}");
             assert_eq!(got.3, emits.then_some(*t as u32), "triangle {i}");
         }
