@@ -95,15 +95,18 @@ pub fn parse_gltf(bytes: &[u8], file: &str, dir: &Path) -> Result<GltfScene, Loa
     let mut b = SceneBuilder::new(camera);
     let ids = imp.add_materials(&mut b, &content, None, &BTreeMap::new());
     let mut emissive = false;
-    for m in &content.meshes {
+    let Content { meshes, lights, .. } = content;
+    // Meshes move into the builder: a copy would double the scene's
+    // geometry in memory until the import is dropped.
+    for m in meshes {
         let emission = imp.materials[m.material].emission.clone();
         emissive |= emission.is_some();
-        b.mesh(&m.name, m.mesh.clone(), ids[m.material], emission);
+        b.mesh(&m.name, m.mesh, ids[m.material], emission);
     }
-    for (name, p, intensity) in &content.lights {
+    for (name, p, intensity) in &lights {
         b.point_light(name, *p, intensity.clone());
     }
-    if content.lights.is_empty() && !emissive {
+    if lights.is_empty() && !emissive {
         imp.note(
             "",
             format!(
@@ -153,12 +156,13 @@ pub(super) fn include(
     }
     let content = imp.import(transform).map_err(err)?;
     let ids = imp.add_materials(b, &content, material, overrides);
-    for m in &content.meshes {
+    let Content { meshes, lights, .. } = content;
+    for m in meshes {
         let emission = imp.materials[m.material].emission.clone();
-        b.mesh(&format!("{object}: {}", m.name), m.mesh.clone(), ids[m.material], emission);
+        b.mesh(&format!("{object}: {}", m.name), m.mesh, ids[m.material], emission);
     }
-    for (name, p, intensity) in &content.lights {
-        b.point_light(&format!("{object}: {name}"), *p, intensity.clone());
+    for (name, p, intensity) in lights {
+        b.point_light(&format!("{object}: {name}"), p, intensity);
     }
     for m in &imp.messages {
         eprintln!("{m}");
