@@ -427,6 +427,10 @@ pub struct ConvergeResults {
     pub notes: Vec<String>,
     pub command: String,
     pub commit: String,
+    /// `crate::build_target` (absent in results written before it was
+    /// recorded).
+    #[serde(default)]
+    pub build_target: String,
     pub prism_version: String,
     /// In command-line order.
     pub integrators: Vec<IntegratorResult>,
@@ -544,6 +548,7 @@ pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
         notes,
         command: cfg.command.clone(),
         commit: env!("PRISM_COMMIT").to_string(),
+        build_target: crate::build_target(),
         prism_version: env!("CARGO_PKG_VERSION").to_string(),
         integrators: results,
     };
@@ -888,8 +893,8 @@ fn report_md(r: &ConvergeResults) -> String {
     };
     let _ = writeln!(
         s,
-        "- resolution {}x{}, seed {}, max depth {}, {} threads\n- budget: {budget}\n- prism {} (commit {})",
-        r.width, r.height, r.seed, r.max_depth, r.threads, r.prism_version, r.commit
+        "- resolution {}x{}, seed {}, max depth {}, {} threads\n- budget: {budget}\n- prism {} (commit {}, built for {})",
+        r.width, r.height, r.seed, r.max_depth, r.threads, r.prism_version, r.commit, r.build_target
     );
     let rf = &r.reference;
     let _ = write!(s, "- reference: `{}`", rf.path);

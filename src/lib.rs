@@ -26,3 +26,18 @@ pub mod materials;
 
 #[path = "../integrators/mod.rs"]
 pub mod integrators;
+
+/// The instruction set this binary was compiled for: the architecture and
+/// the vector extensions that change its floating-point code (FMA fuses
+/// products into sums, so images are bit-identical within one build target,
+/// not across targets; `.cargo/config.toml` explains the default). Recorded
+/// in every render sidecar, reference and `prism converge` result.
+pub fn build_target() -> String {
+    let features = [("avx2", cfg!(target_feature = "avx2")), ("fma", cfg!(target_feature = "fma"))];
+    let on: Vec<&str> = features.iter().filter(|(_, on)| *on).map(|(name, _)| *name).collect();
+    if on.is_empty() {
+        std::env::consts::ARCH.to_string()
+    } else {
+        format!("{} +{}", std::env::consts::ARCH, on.join(" +"))
+    }
+}

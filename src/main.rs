@@ -178,6 +178,8 @@ struct Sidecar {
     dropped_samples: DroppedSamples,
     prism_version: &'static str,
     commit: &'static str,
+    /// `prism::build_target`: images are bit-identical within one.
+    build_target: String,
 }
 
 #[derive(Serialize)]
@@ -202,6 +204,7 @@ impl Sidecar {
             dropped_samples: dropped,
             prism_version: env!("CARGO_PKG_VERSION"),
             commit: env!("PRISM_COMMIT"),
+            build_target: prism::build_target(),
         }
     }
 }

@@ -25,6 +25,10 @@ pub struct ReferenceMeta {
     pub height: u32,
     pub block: u32,
     pub commit: String,
+    /// `crate::build_target` of the binary that made it (absent in
+    /// references made before it was recorded).
+    #[serde(default)]
+    pub build_target: String,
     pub wall_seconds: f64,
     pub command: String,
     /// Per-block mean and standard error of the mean (row-major blocks).
@@ -76,6 +80,7 @@ pub fn make_reference(
         height: h,
         block,
         commit: env!("PRISM_COMMIT").to_string(),
+        build_target: crate::build_target(),
         wall_seconds,
         command,
         block_mean: stats.mean,

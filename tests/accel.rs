@@ -395,7 +395,7 @@ fn rays_through_shared_edges_and_vertices_never_slip_through() {
 #[test]
 fn offset_rays_never_rehit_their_surface() {
     let mut rng = Rand::new(5);
-    let mut edge_escapes = 0;
+    let (mut edge_escapes, mut edge_hits) = (0, 0);
     for scale in [1e-3f32, 1.0, 1e5] {
         for far in [Vec3A::ZERO, Vec3A::new(1.0, -0.7, 0.4) * 1e3 * scale] {
             let place = Affine3A::from_scale_rotation_translation(
@@ -433,16 +433,20 @@ fn offset_rays_never_rehit_their_surface() {
                     let w_in = rng.cosine_around(-n);
                     let inward = Ray::new(offset_ray_origin(p, e, n, w_in), w_in);
                     let offset = (inward.o - p).length();
+                    // Distance from the hit point to the nearest plane of a
+                    // face not coplanar with the one hit: how near an edge it is.
+                    let to_edge = || {
+                        tris.iter()
+                            .filter(|t| geometric_normal(t).dot(n) < 0.999)
+                            .map(|t| (p - t[0]).dot(geometric_normal(t)).abs())
+                            .fold(f32::INFINITY, f32::min)
+                    };
                     let Some(h2) = accel.intersect(&inward, f32::INFINITY) else {
                         // Within about the offset's length of a convex edge
                         // the origin can be outside the neighbouring face and
                         // leave the solid through it. Anywhere else escaping
                         // is a bug.
-                        let to_edge = tris
-                            .iter()
-                            .filter(|t| geometric_normal(t).dot(n) < 0.999)
-                            .map(|t| (p - t[0]).dot(geometric_normal(t)).abs())
-                            .fold(f32::INFINITY, f32::min);
+                        let to_edge = to_edge();
                         assert!(
                             name == "cuboid" && to_edge < 2.0 * offset,
                             "{ctx} ray {i}: inward ray escaped {to_edge} from an edge, offset {offset}"
@@ -467,15 +471,27 @@ fn offset_rays_never_rehit_their_surface() {
                             "{ctx} ray {i}: t = {} for sphere {t_sphere}",
                             h2.t
                         );
-                    } else {
-                        assert!(h2.t > 1e-3 * scale, "{ctx} ray {i}: t = {}", h2.t);
+                    } else if h2.t <= 1e-3 * scale {
+                        // So close a hit is geometry only near an edge: the
+                        // neighbouring face's plane passes within t (plus the
+                        // offset) of the point left. Seen about once in 6,000
+                        // rays; anywhere else it is a bug.
+                        let to_edge = to_edge();
+                        assert!(
+                            name == "cuboid" && to_edge <= h2.t + offset,
+                            "{ctx} ray {i}: t = {}, {to_edge} from an edge, offset {offset}",
+                            h2.t
+                        );
+                        edge_hits += 1;
                     }
                 }
             }
         }
     }
-    eprintln!("{edge_escapes} of 18000 inward cuboid rays left through an edge");
-    assert!(edge_escapes < 50);
+    eprintln!(
+        "{edge_escapes} of 18000 inward cuboid rays left through an edge, {edge_hits} hit the next face within 1e-3"
+    );
+    assert!(edge_escapes + edge_hits < 50);
 }
 
 #[test]

@@ -52,6 +52,10 @@ fn renders_exr_png_and_sidecar() {
     assert_eq!(sidecar["integrator"], "path");
     assert!(sidecar["rays"].as_u64().unwrap() > 0);
     assert_eq!(sidecar["dropped_samples"]["nan"], 0);
+    // What the image is bit-identical within: the commit and the build target.
+    assert_eq!(sidecar["build_target"], prism::build_target().as_str());
+    assert!(prism::build_target().starts_with(std::env::consts::ARCH));
+    assert_eq!(cfg!(target_feature = "fma"), prism::build_target().contains("+fma"));
 }
 
 #[test]
