@@ -382,7 +382,7 @@ fn render_command(a: RenderArgs) -> Result<()> {
     let secs = stats.wall.as_secs_f64();
     let per_second = |x: f64| if secs > 0.0 { x / secs } else { 0.0 };
     sidecar.performance = Some(Performance {
-        threads: rayon::current_num_threads().max(a.threads),
+        threads: stats.threads,
         wall_seconds: secs,
         samples_per_second: per_second(stats.samples as f64),
         rays: stats.rays,

@@ -142,6 +142,9 @@ pub struct RenderStats {
     pub wall: Duration,
     pub samples: u64,
     pub rays: u64,
+    /// Worker threads of the render's pool (`RenderOptions::threads`
+    /// resolved: 0 is one per core).
+    pub threads: usize,
 }
 
 impl RenderStats {
@@ -149,6 +152,7 @@ impl RenderStats {
         self.wall += o.wall;
         self.samples += o.samples;
         self.rays += o.rays;
+        self.threads = self.threads.max(o.threads);
     }
 }
 
@@ -286,7 +290,12 @@ fn render_impl(
     if let Some(images) = strategies {
         images.spp += samples.len() as u64;
     }
-    RenderStats { wall: start.elapsed(), samples: samples.len() as u64 * w as u64 * h as u64, rays }
+    RenderStats {
+        wall: start.elapsed(),
+        samples: samples.len() as u64 * w as u64 * h as u64,
+        rays,
+        threads: pool.current_num_threads(),
+    }
 }
 
 fn progress_bar(visible: bool, len: u64) -> ProgressBar {

@@ -38,6 +38,8 @@ fn renders_exr_png_and_sidecar() {
         &scene,
         "--spp",
         "2",
+        "--threads",
+        "1",
         "--out",
         out.to_str().unwrap(),
         "--png",
@@ -51,6 +53,8 @@ fn renders_exr_png_and_sidecar() {
     assert_eq!(sidecar["spp"], 2);
     assert_eq!(sidecar["integrator"], "path");
     assert!(sidecar["rays"].as_u64().unwrap() > 0);
+    // The render's own pool, not the process's global one (all cores).
+    assert_eq!(sidecar["threads"], 1);
     assert_eq!(sidecar["dropped_samples"]["nan"], 0);
     // What the image is bit-identical within: the commit and the build target.
     assert_eq!(sidecar["build_target"], prism::build_target().as_str());
