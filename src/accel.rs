@@ -26,7 +26,9 @@
 
 use crate::geometry::{gamma, Ray, NO_TRIANGLE};
 use crate::wide_bvh::{self, PrimRef};
-use glam::{DVec3, Vec3A, Vec3Swizzles, Vec4};
+use glam::{DVec3, Vec3A, Vec3Swizzles};
+#[cfg(any(test, not(all(target_arch = "x86_64", target_feature = "avx2"))))]
+use glam::Vec4;
 use obvhs::{
     aabb::Aabb,
     cwbvh::{node::CwBvhNode, CwBvh},
@@ -475,56 +477,130 @@ const SLACK: f32 = 1.0 / (1u32 << 20) as f32;
 /// exact one, so the test is conservative: a triangle whose exact box the ray
 /// touches is always tested (Ize 2013 argues the same for plain boxes).
 /// t_near is clamped at 0 (not obvhs's 1e-4), t_far at the current t_max.
+///
+/// With AVX2 (the x86-64-v3 build) all 8 children are one register and the
+/// hit mask is assembled without a loop (`NodeSlabs::hit_mask8`); otherwise
+/// in two halves of 4 (`NodeSlabs::hit_mask4`). Both compute the same
+/// products and sums in the same order, so they give the same mask.
 #[inline(always)]
 fn intersect_node(node: &CwBvhNode, r: &PreparedRay, t_max: f32, oct_inv4: u32) -> u32 {
-    let e = node.compute_extent();
-    let diff = Vec3A::from(node.p) - r.o;
-    let base = diff * r.inv;
-    let slack = (diff.abs() + e * 256.0) * r.abs_inv * SLACK;
-    let near_off = base - slack;
-    let far_off = base + slack;
-    let scale = e * r.inv;
+    let slabs = NodeSlabs::new(node, r);
     let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+    let mask = slabs.hit_mask8(t_max, child_bits8, bit_index8);
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
+    let mask = slabs.hit_mask4(t_max, child_bits8, bit_index8);
+    mask
+}
 
+/// One node's child slabs as the ray sees them: per axis, the near and far
+/// planes' grid coordinates (chosen by the sign of d) and the affine map
+/// q -> t = q scale + offset, the offsets widened by the slack.
+struct NodeSlabs<'a> {
+    near: [&'a [u8; 8]; 3],
+    far: [&'a [u8; 8]; 3],
+    scale: Vec3A,
+    near_off: Vec3A,
+    far_off: Vec3A,
+}
+
+impl<'a> NodeSlabs<'a> {
     #[inline(always)]
-    fn slab(lo: &[u8; 8], hi: &[u8; 8], neg: bool) -> ([Vec4; 2], [Vec4; 2]) {
-        let (near, far) = if neg { (hi, lo) } else { (lo, hi) };
-        (decode8(near), decode8(far))
-    }
-    let (near_x, far_x) = slab(&node.child_min_x, &node.child_max_x, r.neg[0]);
-    let (near_y, far_y) = slab(&node.child_min_y, &node.child_max_y, r.neg[1]);
-    let (near_z, far_z) = slab(&node.child_min_z, &node.child_max_z, r.neg[2]);
-
-    let mut hit_mask = 0u32;
-    for i in 0..2 {
-        let (nx, fx) = (near_x[i], far_x[i]);
-        let (ny, fy) = (near_y[i], far_y[i]);
-        let (nz, fz) = (near_z[i], far_z[i]);
-        let t_near = (nx * scale.x + Vec4::splat(near_off.x))
-            .max(ny * scale.y + Vec4::splat(near_off.y))
-            .max(nz * scale.z + Vec4::splat(near_off.z))
-            .max(Vec4::ZERO);
-        let t_far = (fx * scale.x + Vec4::splat(far_off.x))
-            .min(fy * scale.y + Vec4::splat(far_off.y))
-            .min(fz * scale.z + Vec4::splat(far_off.z))
-            .min(Vec4::splat(t_max));
-        let mut mask = t_near.cmple(t_far).bitmask();
-        while mask != 0 {
-            let child = i * 4 + mask.trailing_zeros() as usize;
-            mask &= mask - 1;
-            let child_bits = ((child_bits8 >> (child * 8)) as u32) & 0xff;
-            let bit_index = ((bit_index8 >> (child * 8)) as u32) & 0xff;
-            hit_mask |= child_bits << bit_index;
+    fn new(node: &'a CwBvhNode, r: &PreparedRay) -> Self {
+        let e = node.compute_extent();
+        let diff = Vec3A::from(node.p) - r.o;
+        let base = diff * r.inv;
+        let slack = (diff.abs() + e * 256.0) * r.abs_inv * SLACK;
+        let lo = [&node.child_min_x, &node.child_min_y, &node.child_min_z];
+        let hi = [&node.child_max_x, &node.child_max_y, &node.child_max_z];
+        let pick = |k: usize, near: bool| if r.neg[k] == near { hi[k] } else { lo[k] };
+        Self {
+            near: [0, 1, 2].map(|k| pick(k, true)),
+            far: [0, 1, 2].map(|k| pick(k, false)),
+            scale: e * r.inv,
+            near_off: base - slack,
+            far_off: base + slack,
         }
     }
-    hit_mask
+
+    /// All 8 children in one AVX2 register. The hit children's mask bits
+    /// (`child_bits << bit_index`, per child) are shifted in their lanes,
+    /// kept where the slabs overlap and OR-ed together.
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+    #[inline(always)]
+    fn hit_mask8(&self, t_max: f32, child_bits8: u64, bit_index8: u64) -> u32 {
+        use std::arch::x86_64::*;
+        // SAFETY: this function is compiled only when the build enables AVX2
+        // (`cfg(target_feature = "avx2")`, as .cargo/config.toml's
+        // x86-64-v3 does), so every CPU that runs the binary has AVX2, AVX and
+        // SSE2; none of these intrinsics reads or writes memory.
+        unsafe {
+            let widen = |b: u64| _mm256_cvtepu8_epi32(_mm_cvtsi64_si128(b as i64));
+            let q = |v: &[u8; 8]| _mm256_cvtepi32_ps(widen(u64::from_le_bytes(*v)));
+            let t = |v: &[u8; 8], scale: f32, off: f32| {
+                _mm256_add_ps(_mm256_mul_ps(q(v), _mm256_set1_ps(scale)), _mm256_set1_ps(off))
+            };
+            let (s, n, f) = (self.scale, self.near_off, self.far_off);
+            let t_near = _mm256_max_ps(
+                _mm256_max_ps(
+                    _mm256_max_ps(t(self.near[0], s.x, n.x), t(self.near[1], s.y, n.y)),
+                    t(self.near[2], s.z, n.z),
+                ),
+                _mm256_setzero_ps(),
+            );
+            let t_far = _mm256_min_ps(
+                _mm256_min_ps(
+                    _mm256_min_ps(t(self.far[0], s.x, f.x), t(self.far[1], s.y, f.y)),
+                    t(self.far[2], s.z, f.z),
+                ),
+                _mm256_set1_ps(t_max),
+            );
+            // All ones in the lanes of hit children (false for NaN, as cmple).
+            let hit = _mm256_castps_si256(_mm256_cmp_ps::<_CMP_LE_OQ>(t_near, t_far));
+            let bits = _mm256_and_si256(_mm256_sllv_epi32(widen(child_bits8), widen(bit_index8)), hit);
+            let v = _mm_or_si128(_mm256_castsi256_si128(bits), _mm256_extracti128_si256::<1>(bits));
+            let v = _mm_or_si128(v, _mm_shuffle_epi32::<0b01_00_11_10>(v));
+            let v = _mm_or_si128(v, _mm_shuffle_epi32::<0b10_11_00_01>(v));
+            _mm_cvtsi128_si32(v) as u32
+        }
+    }
+
+    /// Children 0-3 and 4-7 in two 4-lane halves, one loop step per hit
+    /// child.
+    #[cfg(any(test, not(all(target_arch = "x86_64", target_feature = "avx2"))))]
+    #[inline(always)]
+    fn hit_mask4(&self, t_max: f32, child_bits8: u64, bit_index8: u64) -> u32 {
+        let near = self.near.map(decode8);
+        let far = self.far.map(decode8);
+        let (s, n, f) = (self.scale, self.near_off, self.far_off);
+        let mut hit_mask = 0u32;
+        for i in 0..2 {
+            let t_near = (near[0][i] * s.x + Vec4::splat(n.x))
+                .max(near[1][i] * s.y + Vec4::splat(n.y))
+                .max(near[2][i] * s.z + Vec4::splat(n.z))
+                .max(Vec4::ZERO);
+            let t_far = (far[0][i] * s.x + Vec4::splat(f.x))
+                .min(far[1][i] * s.y + Vec4::splat(f.y))
+                .min(far[2][i] * s.z + Vec4::splat(f.z))
+                .min(Vec4::splat(t_max));
+            let mut mask = t_near.cmple(t_far).bitmask();
+            while mask != 0 {
+                let child = i * 4 + mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                let child_bits = ((child_bits8 >> (child * 8)) as u32) & 0xff;
+                let bit_index = ((bit_index8 >> (child * 8)) as u32) & 0xff;
+                hit_mask |= child_bits << bit_index;
+            }
+        }
+        hit_mask
+    }
 }
 
 /// The 8 quantized child coordinates of one node axis as floats, children
 /// 0-3 and 4-7. On x86-64 two SSE2 unpacks widen the bytes to 32-bit
 /// integers for one conversion per 4 lanes (48 scalar conversions per node
 /// otherwise, the traversal's hottest line).
-#[cfg(target_arch = "x86_64")]
+#[cfg(all(target_arch = "x86_64", any(test, not(target_feature = "avx2"))))]
 #[inline(always)]
 fn decode8(v: &[u8; 8]) -> [Vec4; 2] {
     use std::arch::x86_64::*;
@@ -572,6 +648,51 @@ mod tests {
         let v = [255, 0, 128, 1, 7, 200, 0, 255];
         let [lo, hi] = decode8(&v);
         assert_eq!([lo.to_array(), hi.to_array()].concat(), v.map(f32::from));
+    }
+
+    /// The 8-lane node test computes the same mask as the 4-lane one, for
+    /// every node of a random scene's tree and rays of all octants, with
+    /// t_max cutting some children off.
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+    #[test]
+    fn node_test_8_lanes_matches_4_lanes() {
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut f = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let tris: Vec<[Vec3A; 3]> = (0..3000)
+            .map(|_| {
+                let c = Vec3A::new(f(), f(), f()) * 10.0;
+                [c, c + Vec3A::new(f(), f(), f()), c + Vec3A::new(f(), f(), f())]
+            })
+            .collect();
+        let a = Accel::build(&tris);
+        assert!(a.bvh.nodes.len() > 100);
+        let (mut hits, mut misses) = (0, 0);
+        for i in 0..20_000 {
+            // Aimed at a point of the node's box, so most rays meet children.
+            let node = &a.bvh.nodes[i % a.bvh.nodes.len()];
+            let b = node.aabb();
+            let o = Vec3A::new(f(), f(), f()) * 14.0 - 2.0;
+            let d = b.min + (b.max - b.min) * Vec3A::new(f(), f(), f()) - o;
+            let r = PreparedRay::new(&Ray::new(o, d)).unwrap();
+            let oct_inv4 =
+                (!r.neg[0] as u32 * 0x0404_0404) | (!r.neg[1] as u32 * 0x0202_0202) | (!r.neg[2] as u32 * 0x0101_0101);
+            let t_max = if i % 3 == 0 { f32::INFINITY } else { f() * 1.5 };
+            let slabs = NodeSlabs::new(node, &r);
+            let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
+            let m8 = slabs.hit_mask8(t_max, child_bits8, bit_index8);
+            assert_eq!(m8, slabs.hit_mask4(t_max, child_bits8, bit_index8), "ray {i}");
+            if m8 == 0 {
+                misses += 1;
+            } else {
+                hits += 1;
+            }
+        }
+        assert!(hits > 1000 && misses > 1000, "{hits} hits, {misses} misses");
     }
 
     #[test]
