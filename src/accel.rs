@@ -26,9 +26,9 @@
 
 use crate::geometry::{gamma, Ray, NO_TRIANGLE};
 use crate::wide_bvh::{self, PrimRef};
-use glam::{DVec3, Vec3A, Vec3Swizzles};
 #[cfg(any(test, not(all(target_arch = "x86_64", target_feature = "avx2"))))]
 use glam::Vec4;
+use glam::{DVec3, Vec3A, Vec3Swizzles};
 use obvhs::{
     aabb::Aabb,
     cwbvh::{node::CwBvhNode, CwBvh},
@@ -173,6 +173,7 @@ impl Accel {
 
     /// Closest hit with t in (0, t_max), not testing the triangles of
     /// `ray.skip`.
+    #[inline(always)]
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<TriangleHit> {
         let pre = PreparedRay::new(ray)?;
         let mut best_t = t_max;
