@@ -56,6 +56,9 @@ pub struct Accel {
     /// Triangles in BVH slot order: `tris[s]` is input triangle
     /// `bvh.primitive_indices[s]`.
     tris: Vec<SoaTriangle>,
+    /// Per slot, how many slots just before and just after it hold
+    /// triangles in exactly its plane (at most `MAX_RUN` each way).
+    coplanar: Vec<[u8; 2]>,
     /// Input indices of the degenerate triangles, left out (ascending).
     degenerate: Vec<u32>,
     /// Number of input triangles, degenerate ones included.
@@ -96,7 +99,28 @@ impl Accel {
         let bvh = wide_bvh::build(refs);
         let sorted: Vec<SoaTriangle> =
             bvh.primitive_indices.par_iter().map(|&i| SoaTriangle::new(&tri(i as usize))).collect();
-        Self { bvh, tris: sorted, degenerate, input_len: len }
+        let coplanar = coplanar_runs(&sorted);
+        Self { bvh, tris: sorted, coplanar, degenerate, input_len: len }
+    }
+
+    /// The slots a ray leaving (or aimed at) the triangle in `slot` skips:
+    /// `slot` and the run of slots around it whose triangles lie exactly in
+    /// its plane. `NO_TRIANGLE` gives an empty range.
+    pub fn coplanar_run(&self, slot: u32) -> std::ops::RangeInclusive<u32> {
+        match self.coplanar.get(slot as usize) {
+            Some(&[back, fwd]) => slot - back as u32..=slot + fwd as u32,
+            None => 1..=0,
+        }
+    }
+
+    /// `coplanar_run` as the traversal's (first, last) pair; (MAX, MAX), a
+    /// run no group reaches, for `NO_TRIANGLE`.
+    #[inline(always)]
+    fn skip_run(&self, slot: u32) -> (u32, u32) {
+        match self.coplanar.get(slot as usize) {
+            Some(&[back, fwd]) => (slot - back as u32, slot + fwd as u32),
+            None => (u32::MAX, u32::MAX),
+        }
     }
 
     /// The input indices of the degenerate triangles, which the BVH leaves
@@ -148,6 +172,7 @@ impl Accel {
         self.bvh.nodes.capacity() * size_of::<CwBvhNode>()
             + self.bvh.primitive_indices.capacity() * 4
             + self.tris.capacity() * size_of::<SoaTriangle>()
+            + self.coplanar.capacity() * 2
             + self.degenerate.capacity() * 4
     }
 
@@ -172,13 +197,14 @@ impl Accel {
     }
 
     /// Closest hit with t in (0, t_max), not testing the triangles of
-    /// `ray.skip`.
+    /// `ray.skip` and their coplanar runs.
     #[inline(always)]
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<TriangleHit> {
         let pre = PreparedRay::new(ray)?;
         let mut best_t = t_max;
         let mut best: Option<(u32, f32, f32)> = None;
-        self.traverse(&pre, ray.skip, &mut best_t, |slot, best_t| {
+        let skip = ray.skip.map(|slot| self.skip_run(slot));
+        self.traverse(&pre, skip, &mut best_t, |slot, best_t| {
             if let Some((t, b1, b2)) = pre.intersect(&self.tris[slot as usize], *best_t) {
                 *best_t = t;
                 best = Some((slot, b1, b2));
@@ -195,15 +221,16 @@ impl Accel {
         })
     }
 
-    /// Whether anything but the triangles of `ray.skip` blocks the ray in
-    /// (0, t_max); stops at the first hit.
+    /// Whether anything but the triangles of `ray.skip` and their coplanar
+    /// runs blocks the ray in (0, t_max); stops at the first hit.
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
         let Some(pre) = PreparedRay::new(ray) else {
             return false;
         };
         let mut t_max = t_max;
         let mut hit = false;
-        self.traverse(&pre, ray.skip, &mut t_max, |slot, t_max| {
+        let skip = ray.skip.map(|slot| self.skip_run(slot));
+        self.traverse(&pre, skip, &mut t_max, |slot, t_max| {
             hit = pre.intersect(&self.tris[slot as usize], *t_max).is_some();
             hit
         });
@@ -216,11 +243,17 @@ impl Accel {
     /// visited leaf to `leaf`, which may shorten `t_max` and returns true to
     /// stop. A group is a base index and a hit mask: for nodes, inner
     /// children's bits (top byte, by traversal priority) over the node's
-    /// `imask`; for triangles, one bit per slot. The slots in `skip` are
+    /// `imask`; for triangles, one bit per slot. The slot runs in `skip` are
     /// cleared from the triangle masks (no branch per triangle, whose
     /// outcome the CPU could not predict).
     #[inline(always)]
-    fn traverse(&self, r: &PreparedRay, skip: [u32; 2], t_max: &mut f32, mut leaf: impl FnMut(u32, &mut f32) -> bool) {
+    fn traverse(
+        &self,
+        r: &PreparedRay,
+        skip: [(u32, u32); 2],
+        t_max: &mut f32,
+        mut leaf: impl FnMut(u32, &mut f32) -> bool,
+    ) {
         if self.bvh.nodes.is_empty() {
             return;
         }
@@ -244,7 +277,7 @@ impl Accel {
                 let hit_mask = intersect_node(node, r, *t_max, oct_inv4);
                 nodes = (node.child_base_idx, (hit_mask & 0xff00_0000) | node.imask as u32);
                 let base = node.primitive_base_idx;
-                tris = (base, hit_mask & 0x00ff_ffff & !(group_bit(skip[0], base) | group_bit(skip[1], base)));
+                tris = (base, hit_mask & 0x00ff_ffff & !(group_bits(skip[0], base) | group_bits(skip[1], base)));
             }
             while tris.1 != 0 {
                 let i = 31 - tris.1.leading_zeros();
@@ -263,13 +296,40 @@ impl Accel {
     }
 }
 
-/// The triangle-mask bit of slot `slot` in a group based at `base`, or 0 if
-/// the group does not hold it (`NO_TRIANGLE` included: slots stay below
-/// 2^32 - 32).
+/// The triangle-mask bits of the slots first..=last in a group based at
+/// `base` (none for (MAX, MAX): slots stay below 2^32 - 32).
 #[inline(always)]
-fn group_bit(slot: u32, base: u32) -> u32 {
-    let rel = slot.wrapping_sub(base);
-    ((rel < 24) as u32) << (rel & 31)
+fn group_bits((first, last): (u32, u32), base: u32) -> u32 {
+    let lo = first.saturating_sub(base).min(32);
+    let hi = last.saturating_add(1).saturating_sub(base).min(32);
+    (((1u64 << hi) - 1) & !((1u64 << lo) - 1)) as u32
+}
+
+/// Longest coplanar run kept each way from a slot: a node's triangles are
+/// at most 24 consecutive slots, so a longer run skips nothing more.
+const MAX_RUN: u8 = 23;
+
+/// Per slot, (back, fwd): how many of the slots just before and just after
+/// it hold triangles exactly in its plane, up to `MAX_RUN`. Neighbours are
+/// compared with exact orientation predicates (Shewchuk 1997, "Adaptive
+/// Precision Floating-Point Arithmetic and Fast Robust Geometric
+/// Predicates", `robust::orient3d`, exact for f32 inputs): all three
+/// vertices of one on the other's plane. Non-degenerate triangles have one
+/// plane each, so coplanarity of neighbours carries along a run.
+fn coplanar_runs(tris: &[SoaTriangle]) -> Vec<[u8; 2]> {
+    let joined: Vec<bool> = tris.par_windows(2).map(|w| w[0].coplanar(&w[1])).collect();
+    let mut runs = vec![[0u8; 2]; tris.len()];
+    for (s, &j) in joined.iter().enumerate() {
+        if j {
+            runs[s + 1][0] = (runs[s][0] + 1).min(MAX_RUN);
+        }
+    }
+    for (s, &j) in joined.iter().enumerate().rev() {
+        if j {
+            runs[s][1] = (runs[s + 1][1] + 1).min(MAX_RUN);
+        }
+    }
+    runs
 }
 
 /// The traversal stack: node groups still to visit. Wide BVHs are shallow,
@@ -331,6 +391,14 @@ impl SoaTriangle {
     fn vertices(&self) -> [Vec3A; 3] {
         let c = &self.c;
         [0, 1, 2].map(|j| Vec3A::new(c[j], c[3 + j], c[6 + j]))
+    }
+
+    /// Whether all of `other`'s vertices lie exactly in this triangle's
+    /// plane.
+    fn coplanar(&self, other: &SoaTriangle) -> bool {
+        let c = |v: Vec3A| robust::Coord3D { x: v.x, y: v.y, z: v.z };
+        let [a, b, p] = self.vertices().map(c);
+        other.vertices().into_iter().all(|v| robust::orient3d(a, b, p, c(v)) == 0.0)
     }
 
     #[inline(always)]

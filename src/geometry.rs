@@ -6,11 +6,13 @@ use glam::Vec3A;
 pub struct Ray {
     pub o: Vec3A,
     pub d: Vec3A,
-    /// BVH slots of triangles the ray cannot hit, which the traversal need
-    /// not test (`NO_TRIANGLE` for none): the one it leaves and the one it is
-    /// aimed at. A ray leaving a planar triangle, from an origin offset to
-    /// the side it travels to, moves away from the triangle's plane and can
-    /// never meet it again; a shadow ray stops short of its target.
+    /// BVH slots of triangles whose planes the ray cannot meet, so the
+    /// traversal need not test them nor their exactly coplanar neighbours in
+    /// slot order (`Accel::coplanar_run`; `NO_TRIANGLE` for none): the one it
+    /// leaves and the one it is aimed at. A ray leaving a planar triangle,
+    /// from an origin offset to the side it travels to, moves away from the
+    /// triangle's plane and can never meet the plane again; a shadow ray
+    /// stops short of its target's plane, which a line crosses only once.
     pub skip: [u32; 2],
 }
 

@@ -64,13 +64,13 @@ fn hit_point_error(t: &[Vec3A; 3], h: &TriangleHit) -> Vec3A {
 /// Closest hit by testing every triangle with the same watertight test; ties
 /// go to the lowest input index. (`slot` is not known here.)
 fn brute(tris: &[[Vec3A; 3]], ray: &Ray, t_max: f32) -> Option<TriangleHit> {
-    brute_without(tris, ray, t_max, None)
+    brute_without(tris, ray, t_max, |_| false)
 }
 
-/// `brute` with input triangle `skip` left out.
-fn brute_without(tris: &[[Vec3A; 3]], ray: &Ray, t_max: f32, skip: Option<u32>) -> Option<TriangleHit> {
+/// `brute` with the input triangles for which `skip` is true left out.
+fn brute_without(tris: &[[Vec3A; 3]], ray: &Ray, t_max: f32, skip: impl Fn(u32) -> bool) -> Option<TriangleHit> {
     let mut best: Option<TriangleHit> = None;
-    for (i, tri) in tris.iter().enumerate().filter(|&(i, _)| Some(i as u32) != skip) {
+    for (i, tri) in tris.iter().enumerate().filter(|&(i, _)| !skip(i as u32)) {
         let tm = best.map_or(t_max, |b| b.t);
         if let Some((t, b1, b2)) = intersect_triangle(ray, tri, tm) {
             best = Some(TriangleHit { t, prim: i as u32, b1, b2, v: *tri, slot: NO_TRIANGLE });
@@ -251,11 +251,12 @@ fn large_mesh_matches_brute_force() {
 }
 
 /// `Ray::skip`: a ray skipping the slot of its closest hit, or of any other
-/// triangle, finds exactly what brute force finds without that triangle,
-/// for closest hit and occlusion.
+/// triangle, finds exactly what brute force finds without that triangle and
+/// its coplanar run (`Accel::coplanar_run`), for closest hit and occlusion.
 #[test]
 fn skipped_triangles_and_only_they_are_not_tested() {
     let mut rng = Rand::new(11);
+    let mut runs = 0;
     for (name, tris) in comparison_scenes() {
         let accel = Accel::build(&tris);
         let slots = accel.slot_map();
@@ -271,15 +272,44 @@ fn skipped_triangles_and_only_they_are_not_tested() {
             for (skip, prim) in [([first.slot, NO_TRIANGLE], first.prim), ([NO_TRIANGLE, slots[other as usize]], other)]
             {
                 let r = Ray { skip, ..ray };
-                let want = brute_without(&tris, &ray, t_max, Some(prim));
+                let run = accel.coplanar_run(slots[prim as usize]);
+                runs += (run.clone().count() > 1) as usize;
+                let skipped = |i: u32| run.contains(&slots[i as usize]);
+                let want = brute_without(&tris, &ray, t_max, skipped);
                 let got = accel.intersect(&r, t_max);
                 assert_eq!(got.map(|h| h.t), want.map(|h| h.t), "{name} ray {i} skipping {prim}");
-                assert!(got.is_none_or(|h| h.prim != prim), "{name} ray {i} hit skipped {prim}");
+                assert!(got.is_none_or(|h| !skipped(h.prim)), "{name} ray {i} hit skipped {prim}");
                 assert_eq!(accel.occluded(&r, t_max), want.is_some(), "{name} ray {i} skipping {prim}");
             }
         }
         assert!(with_hit > 500, "{name}: only {with_hit} rays with a hit");
     }
+    assert!(runs > 20, "only {runs} skips of a coplanar run: the cuboid's faces should give more");
+}
+
+/// `Accel::coplanar_run` joins neighbouring slots only when they are
+/// exactly coplanar: the two halves of a flat quad, in any orientation that
+/// keeps its vertices exactly in one plane, but not a quad folded by one ulp
+/// of one coordinate, however flat it looks.
+#[test]
+fn coplanar_runs_join_flat_quads_and_not_folded_ones() {
+    let quad = |c: [Vec3A; 4]| [[c[0], c[1], c[2]], [c[0], c[2], c[3]]];
+    let flat =
+        [Vec3A::new(0.0, 0.0, 2.0), Vec3A::new(1.0, 0.0, 2.0), Vec3A::new(1.0, 1.0, 2.0), Vec3A::new(0.0, 1.0, 2.0)];
+    // A tilted plane that holds the vertices exactly: z = x + 2 y.
+    let tilted = flat.map(|v| Vec3A::new(v.x, v.y, v.x + 2.0 * v.y));
+    let mut folded = flat;
+    folded[3].z = folded[3].z.next_up();
+    for (corners, joined) in [(flat, true), (tilted, true), (folded, false)] {
+        let accel = Accel::build(&quad(corners));
+        let slots = accel.slot_map();
+        for s in slots {
+            let run = accel.coplanar_run(s);
+            assert_eq!(run.clone().count(), if joined { 2 } else { 1 }, "{corners:?}: slot {s}: {run:?}");
+            assert!(run.contains(&s));
+        }
+    }
+    assert!(Accel::build(&quad(flat)).coplanar_run(NO_TRIANGLE).is_empty());
 }
 
 /// Points to aim at on a closed mesh: every vertex, and points along every
