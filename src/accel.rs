@@ -106,10 +106,10 @@ impl Accel {
     /// The slots a ray leaving (or aimed at) the triangle in `slot` skips:
     /// `slot` and the run of slots around it whose triangles lie exactly in
     /// its plane. `NO_TRIANGLE` gives an empty range.
-    pub fn coplanar_run(&self, slot: u32) -> std::ops::RangeInclusive<u32> {
+    pub fn coplanar_run(&self, slot: u32) -> std::ops::Range<u32> {
         match self.coplanar.get(slot as usize) {
-            Some(&[back, fwd]) => slot - back as u32..=slot + fwd as u32,
-            None => 1..=0,
+            Some(&[back, fwd]) => slot - back as u32..slot + fwd as u32 + 1,
+            None => 0..0,
         }
     }
 
