@@ -394,11 +394,13 @@ impl SoaTriangle {
     }
 
     /// Whether all of `other`'s vertices lie exactly in this triangle's
-    /// plane.
+    /// plane. A shared vertex does trivially; it is not handed to
+    /// `orient3d`, whose exact (slow) stage every zero determinant reaches.
     fn coplanar(&self, other: &SoaTriangle) -> bool {
         let c = |v: Vec3A| robust::Coord3D { x: v.x, y: v.y, z: v.z };
-        let [a, b, p] = self.vertices().map(c);
-        other.vertices().into_iter().all(|v| robust::orient3d(a, b, p, c(v)) == 0.0)
+        let own = self.vertices();
+        let [a, b, p] = own.map(c);
+        other.vertices().into_iter().all(|v| own.contains(&v) || robust::orient3d(a, b, p, c(v)) == 0.0)
     }
 
     #[inline(always)]
