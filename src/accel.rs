@@ -123,6 +123,11 @@ impl Accel {
         }
     }
 
+    /// The input index of the triangle in each slot.
+    pub fn slot_prims(&self) -> &[u32] {
+        &self.bvh.primitive_indices
+    }
+
     /// The input indices of the degenerate triangles, which the BVH leaves
     /// out (ascending).
     pub fn degenerate(&self) -> &[u32] {

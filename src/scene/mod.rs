@@ -137,6 +137,10 @@ pub struct Scene {
     pub camera: Camera,
     pub accel: Accel,
     meshes: Vec<MeshRecord>,
+    /// The mesh of the triangle in each BVH slot, so a hit needs no search
+    /// over `meshes` (2 bytes per triangle); None for a scene of more than
+    /// 2^16 meshes, whose hits use `mesh_index`.
+    slot_mesh: Option<Vec<u16>>,
     /// Vertices of the degenerate triangles, which the BVH does not store
     /// (never hit; kept for `triangle`), sorted by triangle index.
     degenerate: Vec<(u32, [Vec3A; 3])>,
@@ -243,6 +247,8 @@ impl SceneBuilder {
             mesh.indices[i - records[m].start as usize].map(|j| mesh.positions[j as usize])
         };
         let accel = Accel::build_with(start as usize, vertices);
+        let slot_mesh = (records.len() <= 1 << 16)
+            .then(|| accel.slot_prims().iter().map(|&p| mesh_index(&records, p) as u16).collect());
         fn area(l: &mut Light) -> Option<&mut AreaLight> {
             match l {
                 Light::Area(a) => Some(a),
@@ -282,6 +288,7 @@ impl SceneBuilder {
             camera: self.camera,
             accel,
             meshes: records,
+            slot_mesh,
             degenerate,
             materials: self.materials,
             lights,
@@ -302,7 +309,7 @@ impl Scene {
         count_ray();
         let hit = self.accel.intersect(ray, f32::INFINITY)?;
         let v = hit.v;
-        let m = &self.meshes[mesh_index(&self.meshes, hit.prim)];
+        let m = &self.meshes[self.mesh_of(hit.slot, hit.prim)];
         let k = (hit.prim - m.start) as usize;
         let b0 = 1.0 - hit.b1 - hit.b2;
         let p = v[0] * b0 + v[1] * hit.b1 + v[2] * hit.b2;
@@ -332,6 +339,16 @@ impl Scene {
             light: m.lights.get(k).copied().filter(|&l| l != NO_LIGHT),
             slot: hit.slot,
         })
+    }
+
+    /// The index in `meshes` of the mesh holding triangle `prim`, which is
+    /// in BVH slot `slot`.
+    #[inline]
+    fn mesh_of(&self, slot: u32, prim: u32) -> usize {
+        match &self.slot_mesh {
+            Some(by_slot) => by_slot[slot as usize] as usize,
+            None => mesh_index(&self.meshes, prim),
+        }
     }
 
     /// Whether the segment between two points is unobstructed; each end is
@@ -427,6 +444,7 @@ impl Scene {
             })
             .sum();
         self.accel.heap_bytes()
+            + self.slot_mesh.as_ref().map_or(0, |m| m.capacity() * 2)
             + self.meshes.capacity() * std::mem::size_of::<MeshRecord>()
             + self.degenerate.capacity() * std::mem::size_of::<(u32, [Vec3A; 3])>()
             + shading
@@ -480,5 +498,52 @@ mod tests {
         let si = scene.intersect(&Ray::new(Vec3A::new(1.5, 0.5, -1.0), Vec3A::Z)).expect("hit");
         assert_eq!((si.material, si.light), (white, Some(0)));
         assert_eq!(si.ng, Vec3A::Z);
+    }
+
+    /// A hit's mesh from the per-slot table is the one the search over
+    /// the mesh starts finds (the path of scenes with more than 2^16
+    /// meshes): same material, same area light, for every triangle of a
+    /// scene of many small meshes.
+    #[test]
+    fn slot_mesh_table_agrees_with_the_search() {
+        let camera = Camera::new(Vec3A::new(0.0, 0.0, -5.0), Vec3A::ZERO, Vec3A::Y, 40.0, 8, 8);
+        let mut b = SceneBuilder::new(camera);
+        let materials: Vec<u32> = (0..3)
+            .map(|k| {
+                b.material(&format!("m{k}"), Bsdf::Diffuse(Diffuse::new(Spectrum::Constant(0.2 + 0.2 * k as f32))))
+            })
+            .collect();
+        for k in 0..300 {
+            let (x, y) = ((k % 20) as f32, (k / 20) as f32);
+            let quad = [
+                Vec3A::new(x, y, 0.0),
+                Vec3A::new(x + 0.9, y, 0.0),
+                Vec3A::new(x + 0.9, y + 0.9, 0.0),
+                Vec3A::new(x, y + 0.9, 0.0),
+            ];
+            let emission = (k % 7 == 0).then_some((Spectrum::Constant(1.0), false));
+            b.mesh(&format!("quad {k}"), Mesh::quad(quad), materials[k % 3], emission);
+        }
+        let mut scene = b.build();
+        let hits = |scene: &Scene| -> Vec<(u32, Option<u32>)> {
+            (0..300 * 2)
+                .map(|i| {
+                    let (k, half) = (i / 2, i % 2);
+                    let (x, y) = ((k % 20) as f32, (k / 20) as f32);
+                    let o = Vec3A::new(x + 0.3 + 0.3 * half as f32, y + 0.6 - 0.3 * half as f32, -1.0);
+                    let si = scene.intersect(&Ray::new(o, Vec3A::Z)).expect("hit");
+                    (si.material, si.light)
+                })
+                .collect()
+        };
+        assert!(scene.slot_mesh.is_some());
+        let by_table = hits(&scene);
+        assert_eq!(by_table.iter().filter(|h| h.1.is_some()).count(), 2 * 43);
+        assert_eq!(
+            by_table.iter().step_by(2).map(|h| h.0).collect::<Vec<_>>(),
+            (0..300).map(|k| materials[k % 3]).collect::<Vec<_>>()
+        );
+        scene.slot_mesh = None;
+        assert_eq!(hits(&scene), by_table);
     }
 }
