@@ -107,9 +107,9 @@ impl Accel {
     /// `slot` and the run of slots around it whose triangles lie exactly in
     /// its plane. `NO_TRIANGLE` gives an empty range.
     pub fn coplanar_run(&self, slot: u32) -> std::ops::Range<u32> {
-        match self.coplanar.get(slot as usize) {
-            Some(&[back, fwd]) => slot - back as u32..slot + fwd as u32 + 1,
-            None => 0..0,
+        match self.skip_run(slot) {
+            (u32::MAX, _) => 0..0,
+            (first, last) => first..last + 1,
         }
     }
 
