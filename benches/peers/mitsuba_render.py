@@ -31,7 +31,11 @@ def cpu_seconds():
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("scene", help="scene.xml written by prism export-mitsuba")
+    ap.add_argument(
+        "scene",
+        help="scene.xml written by prism export-mitsuba, or 'builtin' for Mitsuba's own mi.cornell_box() "
+        "(a control: is the exported scene slower for Mitsuba than its own?)",
+    )
     ap.add_argument("--variant", required=True, help="e.g. llvm_ad_spectral, scalar_spectral")
     ap.add_argument("--integrator", choices=["path", "ptracer"], default="path")
     ap.add_argument("--spp", type=int, default=64)
@@ -51,7 +55,12 @@ def main():
         dr.set_flag(dr.JitFlag.KernelHistory, True)
 
     t = time.perf_counter()
-    scene = mi.load_file(a.scene, spp=a.spp, width=a.width, height=a.height)
+    if a.scene == "builtin":
+        box = mi.cornell_box()
+        box["sensor"]["film"].update(width=a.width, height=a.height)
+        scene = mi.load_dict(box)
+    else:
+        scene = mi.load_file(a.scene, spp=a.spp, width=a.width, height=a.height)
     load_seconds = time.perf_counter() - t
     integrator = mi.load_dict({"type": a.integrator, "max_depth": -1, "rr_depth": 4})
 
