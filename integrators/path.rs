@@ -4,6 +4,9 @@
 //! strategies are combined with Veach's power heuristic (Veach & Guibas 1995,
 //! Veach 1997 §9.2). Specular vertices and delta lights take weight 1 for
 //! their only strategy.
+//! A point light the camera sees directly is a delta in the image plane
+//! that no camera ray hits: `unsamplable` names it (light and bdpt render
+//! it; pbrt-v4's path tracer has the same blind spot).
 //!
 //! | parameter | type | default | meaning                          |
 //! |-----------|------|---------|----------------------------------|
@@ -93,7 +96,11 @@ impl Integrator for PathTracer {
     }
 
     fn unsamplable(&self, scene: &Scene) -> Vec<String> {
-        crate::path::specular_chains_to_point_lights(scene)
+        let mut warnings = crate::path::specular_chains_to_point_lights(scene);
+        warnings.extend(crate::path::point_lights_in_view(scene).into_iter().map(|name| {
+            format!("path tracing cannot see the point light \"{name}\" directly through the pinhole: its pixel will lack the light itself (light and bdpt render it)")
+        }));
+        warnings
     }
 }
 

@@ -2,8 +2,8 @@
 //! vertex with its forward and reverse densities in area measure, light- and
 //! camera-subpath generation by random walk, the densities MIS needs, and the
 //! connection of a light-subpath vertex to the pinhole (the t = 1 strategy).
-//! Also the scene checks for path classes that no estimator with a pinhole
-//! camera can sample.
+//! Also the scene checks for path classes that some or all estimators with
+//! a pinhole camera cannot sample.
 //!
 //! Notation (Veach 1997 ch. 10, pbrt-v3 `bdpt.h`, SmallVCM): a light subpath
 //! y_0 .. y_{s-1} starts on a light, a camera subpath z_0 .. z_{t-1} at the
@@ -533,6 +533,26 @@ pub struct CameraConnection {
     pub camera: Vertex,
     pub segment: Segment,
     pub scatter: Scatter,
+}
+
+/// The names of the point lights the pinhole sees directly: in the image
+/// and unoccluded. Such a light is a delta in the image plane as well, so it
+/// lands in one pixel with finite energy (its irradiance on the film), but
+/// only a light-subpath vertex joined to the pinhole reaches it (light
+/// tracing; BDPT's s = 1, t = 1): a camera ray never hits a point.
+pub fn point_lights_in_view(scene: &Scene) -> Vec<&str> {
+    let pinhole = SurfacePoint::at(scene.camera.position);
+    scene
+        .lights
+        .iter()
+        .zip(&scene.light_names)
+        .filter_map(|(l, name)| match l {
+            Light::Point(pl) => Some((pl.p, name.as_str())),
+            _ => None,
+        })
+        .filter(|&(p, _)| scene.camera.sample_wi(p).is_some() && scene.unoccluded(SurfacePoint::at(p), pinhole))
+        .map(|(_, name)| name)
+        .collect()
 }
 
 /// Delta lights seen only through smooth specular surfaces (S-D-S paths with

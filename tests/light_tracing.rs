@@ -1,7 +1,8 @@
 //! Proofs for `light` (light tracing, integrators/light.rs): agreement with
 //! `path` on the Cornell box, uniform importance (no cos^4 vignetting
-//! error), and the warnings for what a pinhole cannot see (its white
-//! furnaces are in tests/furnace.rs). Statistics follow VALIDATION.md §1
+//! error), the warnings for what a pinhole cannot see, and a point light
+//! in view, which only light paths render (its white furnaces are in
+//! tests/furnace.rs). Statistics follow VALIDATION.md §1
 //! with the colour rule of `prism::stats::Verdict`; every statistical test
 //! runs a negative control that must be rejected.
 
@@ -131,4 +132,79 @@ fn light_tracing_warns_about_what_a_pinhole_cannot_see() {
     let w = lt.unsamplable(&b.build());
     assert!(w.iter().any(|m| m.contains("environment")), "background in view not reported: {w:?}");
     assert!(integrator("bdpt").unsamplable(&scene("furnace.json", 32, 32)).is_empty());
+}
+
+/// A point light the pinhole sees directly is a point of the image too: all
+/// its light lands in one pixel, with the value W H I / (A cos^3 theta d^2)
+/// (its irradiance at the pinhole, I / d^2, over the pixel's solid angle
+/// A cos^3 theta / (W H), A the image rectangle at distance 1). Light
+/// tracing and BDPT's (s = 1, t = 1) render it (up to the noise of the
+/// wavelength samples); a camera path never hits a point, so `path` leaves
+/// the pixel black and says so, but only while the light is in view and
+/// unoccluded. The warning is checked against the renders: if `path` ever
+/// rendered the light, this test fails and the warning has to go.
+/// Negative control: the value with a pixel solid angle of A / (W H) (no
+/// cos^3, 15 % off here) is rejected.
+#[test]
+fn a_point_light_in_view_is_one_pixel_that_only_light_paths_render() {
+    let (w, h, fov_y) = (12u32, 8u32, 40.0f32);
+    let camera = Camera::new(Vec3A::ZERO, Vec3A::Z, Vec3A::Y, fov_y, w, h);
+    let intensity = 2.0f32;
+    let bulb = Vec3A::new(0.9, -0.5, 3.0);
+    let build = |p: Vec3A, blocked: bool| {
+        let mut b = SceneBuilder::new(camera.clone());
+        b.point_light("bulb", p, Spectrum::Constant(intensity));
+        if blocked {
+            let m = b.material("black", Bsdf::Diffuse(Diffuse::new(Spectrum::Constant(0.0))));
+            let (z, r) = (1.5, 0.5);
+            let quad = [(-r, -r), (r, -r), (r, r), (-r, r)].map(|(x, y)| p * (z / p.z) + Vec3A::new(x, y, 0.0));
+            b.mesh("blocker", Mesh::quad(quad), m, None);
+        }
+        b.build()
+    };
+    let warned = |s: &Scene, name: &str| integrator(name).unsamplable(s).iter().any(|m| m.contains("\"bulb\""));
+    let s = build(bulb, false);
+    assert!(warned(&s, "path"), "path did not warn of the point light in view");
+    assert!(!warned(&s, "light") && !warned(&s, "bdpt"), "light or bdpt warned of a light they render");
+    assert!(!warned(&build(-bulb, false), "path"), "path warned of a light behind the camera");
+    assert!(!warned(&build(bulb, true), "path"), "path warned of an occluded light");
+
+    let half_h = (fov_y.to_radians() * 0.5).tan() as f64;
+    let area = 4.0 * half_h * half_h * w as f64 / h as f64;
+    let (d2, cos) = (bulb.length_squared() as f64, (bulb.z / bulb.length()) as f64);
+    let colour = srgb_of(&Spectrum::Constant(intensity));
+    let expected = colour.map(|c| c * (w * h) as f64 / (area * cos.powi(3) * d2));
+    let without_cos3 = colour.map(|c| c * (w * h) as f64 / (area * d2));
+    // (Where it lands is the camera's projection, tested in camera.rs.)
+    let raster = camera.sample_wi(bulb).unwrap().raster.as_uvec2();
+    let lit = (raster.y * w + raster.x) as usize;
+    for name in ["light", "bdpt", "path"] {
+        let passes = render_passes(&s, integrator(name).as_ref(), 4, K, seed(9), 0);
+        let unlit = passes.iter().flat_map(|p| p.iter().enumerate()).filter(|&(i, px)| i != lit && *px != [0.0; 3]);
+        assert_eq!(unlit.count(), 0, "{name}: light off the bulb's pixel");
+        let values: Vec<[f64; 3]> = passes.iter().map(|p| p[lit].map(f64::from)).collect();
+        if name == "path" {
+            assert!(values.iter().all(|v| *v == [0.0; 3]), "path rendered the point light: drop its warning");
+            continue;
+        }
+        let z = |want: [f64; 3]| pass_z(&values, want);
+        let (z_true, z_control) = (z(expected), z(without_cos3));
+        eprintln!("{name}: bulb pixel z {z_true:.2} (control without cos^3: {z_control:.1})");
+        assert!(z_true.abs() < 4.0, "{name}: bulb pixel off its value: z = {z_true}");
+        assert!(z_control.abs() > 4.0, "{name}: the missing cos^3 went undetected: z = {z_control}");
+    }
+}
+
+/// The largest |z| over the colour channels of the mean of independent
+/// passes against `want` (standard error from the passes' spread).
+fn pass_z(values: &[[f64; 3]], want: [f64; 3]) -> f64 {
+    let k = values.len() as f64;
+    (0..3)
+        .map(|c| {
+            let mean = values.iter().map(|v| v[c]).sum::<f64>() / k;
+            let var = values.iter().map(|v| (v[c] - mean).powi(2)).sum::<f64>() / (k - 1.0);
+            (mean - want[c]) / (var / k).sqrt()
+        })
+        .max_by(|a, b| a.abs().total_cmp(&b.abs()))
+        .unwrap()
 }
