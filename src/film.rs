@@ -43,7 +43,9 @@ impl DroppedSamples {
     /// The check is on the spectral values: sRGB itself may legitimately be
     /// negative for saturated spectra. A colour beyond the film's exact range
     /// (|c| > MAX_SAMPLE, some 10^14: no estimator comes near it on a sane
-    /// scene) counts as infinite, so the fixed-point sums cannot overflow.
+    /// scene) counts as infinite, and so does a colour the conversion itself
+    /// overflows (a finite spectrum near f32::MAX sums to infinity, and the
+    /// sRGB matrix turns infinities into NaN).
     #[inline]
     pub fn admit(&mut self, l: SampledSpectrum, lambda: &SampledWavelengths) -> Option<Vec3> {
         if l.0.is_nan_mask().any() {
@@ -59,7 +61,8 @@ impl DroppedSamples {
             return None;
         }
         let rgb = to_linear_srgb(l, lambda);
-        if rgb.abs().max_element() > MAX_SAMPLE {
+        // (`max_element` would pass over a NaN channel.)
+        if !(rgb.is_finite() && rgb.abs().max_element() <= MAX_SAMPLE) {
             self.infinite += 1;
             return None;
         }
@@ -72,7 +75,9 @@ impl DroppedSamples {
 /// than 10^-18, far below what an f32 pixel can show.
 const FRAC_BITS: i32 = 60;
 /// The largest sample colour the film accepts: 2^48, so that 2^19 such
-/// samples in one pixel still fit the 127 bits of an i128 sum.
+/// samples in one pixel still fit the 127 bits of an i128 sum. Past that a
+/// sample that would carry its pixel's sum out of range is dropped and
+/// counted as infinite (`add_fixed`).
 pub const MAX_SAMPLE: f32 = (1u64 << 48) as f32;
 
 /// A sample's colour in the film's fixed point (`admit` bounds it),
@@ -90,10 +95,18 @@ pub fn to_fixed(rgb: Vec3) -> [i128; 3] {
     })
 }
 
-/// Adds fixed-point colour `v` to `sum`.
+/// Adds fixed-point colour `v` to `sum`, unless a channel would leave the
+/// i128 range: then `sum` stays as it was and the result is false.
 #[inline]
-pub fn add_fixed(sum: &mut [i128; 3], v: [i128; 3]) {
-    sum.iter_mut().zip(v).for_each(|(s, v)| *s += v);
+#[must_use]
+pub fn add_fixed(sum: &mut [i128; 3], v: [i128; 3]) -> bool {
+    match [0, 1, 2].map(|c| sum[c].checked_add(v[c])) {
+        [Some(r), Some(g), Some(b)] => {
+            *sum = [r, g, b];
+            true
+        }
+        _ => false,
+    }
 }
 
 pub struct Film {
@@ -133,7 +146,10 @@ impl Film {
             self.width,
             self.height
         );
-        self.sums.iter_mut().zip(&other.sums).for_each(|(a, &b)| add_fixed(a, b));
+        let mut sums = self.sums.clone();
+        let fits = sums.iter_mut().zip(&other.sums).all(|(a, &b)| add_fixed(a, b));
+        ensure!(fits, "the summed samples leave the film's exact range (2^67 per pixel and colour channel)");
+        self.sums = sums;
         self.spp += other.spp;
         self.dropped.merge(&other.dropped);
         Ok(())
@@ -217,4 +233,24 @@ pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
     write_atomically(path, |tmp| {
         std::fs::write(tmp, text + "\n").with_context(|| format!("cannot write {}", path.display()))
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn adding_films_refuses_to_wrap() {
+        let film = |sum: i128| {
+            let mut f = Film::new(1, 1);
+            f.sums[0] = [sum, 0, 0];
+            f.spp = 1;
+            f
+        };
+        let mut a = film(i128::MAX - 1);
+        assert!(a.add(&film(2)).is_err(), "a sum past i128::MAX was accepted");
+        assert_eq!((a.sums[0][0], a.spp), (i128::MAX - 1, 1), "a refused addition changed the film");
+        a.add(&film(1)).unwrap();
+        assert_eq!((a.sums[0][0], a.spp), (i128::MAX, 2));
+    }
 }

@@ -282,7 +282,7 @@ fn render_impl(
                 if let (Some(images), Some(tile)) = (strategies.as_deref_mut(), out.strategies.take()) {
                     merge_tile_strategies(images, &out, tile);
                 }
-                merge_tile(film, out);
+                merge_tile(film, out, samples.len() as u64);
             }
         }
     });
@@ -345,7 +345,9 @@ fn render_tile(
                 }
                 let l = integrator.sample(scene, pixel, &mut sampler, &mut lambda, ws);
                 if let Some(rgb) = out.dropped.admit(l, &lambda) {
-                    add_fixed(sum, to_fixed(rgb));
+                    if !add_fixed(sum, to_fixed(rgb)) {
+                        out.dropped.infinite += 1;
+                    }
                 }
                 for sp in &ws.splats {
                     if let Some(rgb) = out.dropped.admit(sp.l, &lambda) {
@@ -410,15 +412,22 @@ fn merge_tile_strategies(images: &mut StrategyImages, out: &TileOutput, tile: Ti
     images.dropped.merge(&tile.dropped);
 }
 
-fn merge_tile(film: &mut Film, out: TileOutput) {
+/// Adds a tile's sums (`spp` camera samples per pixel) and splats to the
+/// film. What would carry a pixel's sum out of the film's range is dropped
+/// and counted as infinite: a splat, or a tile pixel's `spp` samples.
+fn merge_tile(film: &mut Film, out: TileOutput, spp: u64) {
     for y in 0..out.size.y {
         for x in 0..out.size.x {
             let i = ((out.origin.y + y) * film.width + out.origin.x + x) as usize;
-            add_fixed(&mut film.sums[i], out.sums[(y * out.size.x + x) as usize]);
+            if !add_fixed(&mut film.sums[i], out.sums[(y * out.size.x + x) as usize]) {
+                film.dropped.infinite += spp;
+            }
         }
     }
     for (i, rgb) in out.splats {
-        add_fixed(&mut film.sums[i as usize], to_fixed(rgb));
+        if !add_fixed(&mut film.sums[i as usize], to_fixed(rgb)) {
+            film.dropped.infinite += 1;
+        }
     }
     film.dropped.merge(&out.dropped);
 }

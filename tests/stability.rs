@@ -22,6 +22,8 @@
 //!   and rays leaving the floor never hit it again (the floor is a plane
 //!   through the origin, so the origin offset alone cannot help: the
 //!   intersection test's conservative t must).
+//! - The film's range: colours that overflow f32 and pixel sums past the
+//!   i128 range are counted as infinite, never written wrapped or zeroed.
 //!
 //! Samples are checked where the film checks them (DroppedSamples: NaN,
 //! infinite, negative, per reason) and pixels in CIE XYZ: linear sRGB may be
@@ -760,4 +762,44 @@ fn scale_invariance_small_scale() {
 #[test]
 fn scale_invariance_large_scale() {
     scale_invariance(&[1e5]);
+}
+
+/// The film's limits: a finite spectrum so large that its colour overflows
+/// f32 (the sRGB matrix would turn the infinities into NaN), and a pixel
+/// whose exact i128 sum would pass 2^127 (2^20 samples of 1.5e14, where the
+/// film's per-sample bound of 2^48 leaves room for 2^19). Both are counted
+/// as infinite, never written as a wrapped or zeroed pixel.
+#[test]
+fn the_film_counts_what_leaves_its_range() {
+    let sky = |radiance: &str, size: u32| {
+        let text = format!(
+            r#"{{"camera": {{"position": [0, 0, -4], "look_at": [0, 0, 0], "fov": 40, "width": {size}, "height": {size}}},
+  "materials": {{}}, "objects": [], "lights": [{{"type": "environment", "radiance": {radiance}}}]}}"#
+        );
+        parse_scene(&text, "sky", Path::new(".")).unwrap_or_else(|e| panic!("{e}")).build()
+    };
+    let opts = RenderOptions { seed: seed(), threads: 1, progress: false };
+    let path = integrator("path");
+
+    let s = sky("1e37", 2);
+    let mut film = Film::new(2, 2);
+    render(&s, path.as_ref(), &opts, &mut film, 0..4);
+    assert_eq!(film.dropped.infinite, 16, "colours beyond f32 not all counted: {:?}", film.dropped);
+    assert!(film.image().iter().flatten().all(|&c| c == 0.0));
+
+    let s = sky(r#"{"rgb": [1, 1, 1], "scale": 1.5e14}"#, 1);
+    let mut film = Film::new(1, 1);
+    let spp = 1u32 << 20;
+    render(&s, path.as_ref(), &opts, &mut film, 0..spp);
+    let dropped = film.dropped.infinite;
+    let kept = spp as u64 - dropped;
+    eprintln!("1.5e14 sky, 2^20 samples: {dropped} dropped as beyond the film's range");
+    assert!(dropped > 0 && film.dropped.nan == 0 && film.dropped.negative == 0, "{:?}", film.dropped);
+    // Every kept sample is ~1.5e14 per channel: the pixel (sum / spp) is
+    // kept / spp of that, not a wrapped negative number.
+    let pixel = film.image()[0];
+    for c in pixel {
+        let per_sample = c as f64 * spp as f64 / kept as f64;
+        assert!((1.0e14..2.5e14).contains(&per_sample), "pixel {pixel:?}: {per_sample:e} per kept sample");
+    }
 }
