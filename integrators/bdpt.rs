@@ -106,7 +106,9 @@ impl Integrator for Bdpt {
     }
 
     fn unsamplable(&self, scene: &Scene) -> Vec<String> {
-        specular_chains_to_point_lights(scene)
+        let mut warnings = specular_chains_to_point_lights(scene);
+        warnings.extend(crate::path::environment_paths_overflow(scene));
+        warnings
     }
 }
 

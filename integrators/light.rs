@@ -73,6 +73,7 @@ impl Integrator for LightTracer {
             );
         }
         warnings.extend(specular_chains_to_point_lights(scene));
+        warnings.extend(crate::path::environment_paths_overflow(scene));
         warnings
     }
 }

@@ -14,6 +14,9 @@
 use crate::geometry::Ray;
 use glam::{Vec2, Vec3A};
 
+/// The largest image prism renders, in pixels (`Camera::check_resolution`).
+pub const MAX_PIXELS: u64 = 1 << 27;
+
 #[derive(Clone, Debug)]
 pub struct Camera {
     pub position: Vec3A,
@@ -54,6 +57,22 @@ impl Camera {
         let half_h = (fov_y_deg.to_radians() * 0.5).tan();
         let half_w = half_h * width as f32 / height as f32;
         Self { position, forward, right, up, width, height, half_w, half_h }
+    }
+
+    /// Whether a film of `width` x `height` fits: at least one pixel, and at
+    /// most `MAX_PIXELS` (each holds three i128 sums, 48 bytes), so absurd
+    /// sizes get an error instead of an allocation failure.
+    pub fn check_resolution(width: u32, height: u32) -> Result<(), String> {
+        let pixels = width as u64 * height as u64;
+        if pixels == 0 {
+            return Err("width and height must be at least 1".to_string());
+        }
+        if pixels > MAX_PIXELS {
+            return Err(format!(
+                "{width} x {height} = {pixels} pixels is more than the {MAX_PIXELS} (2^27, e.g. 16384 x 8192) a film holds"
+            ));
+        }
+        Ok(())
     }
 
     /// The same camera with another resolution (the vertical field of view

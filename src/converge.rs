@@ -56,6 +56,7 @@
 //! | --exposure               | automatic      | PNG exposure in stops (default: log-average key 0.18) |
 //! | --save-exr               | off            | also write each final image as `DIR/<label>.exr`    |
 
+use crate::camera::Camera;
 use crate::film::{read_exr, write_exr, write_json, DroppedSamples, Film};
 use crate::integrators::{self, IntegratorOptions, MisHeuristic};
 use crate::reference::{make_reference, read_reference, write_reference, ReferenceMeta};
@@ -168,9 +169,13 @@ pub fn command(a: ConvergeArgs) -> Result<()> {
     let specs = IntegratorSpec::parse_list(&a.integrators, &a.mis)?;
     let resolution = match (a.width, a.height) {
         (None, None) => None,
-        (Some(w), Some(h)) if w > 0 && h > 0 => Some((w, h)),
+        (Some(w), Some(h)) if w > 0 && h > 0 => {
+            Camera::check_resolution(w, h).map_err(|e| anyhow::anyhow!("--width, --height: {e}"))?;
+            Some((w, h))
+        }
         _ => bail!("--width and --height must be given together and be at least 1"),
     };
+    crate::render::check_threads(a.threads)?;
     let reference = match (&a.reference, a.reference_spp) {
         (Some(p), None) => ReferenceSource::File(p.clone()),
         (None, Some(spp)) => ReferenceSource::Render {

@@ -108,11 +108,15 @@ impl Light {
     }
 
     /// Emitted power, used only to choose lights proportionally (luminance).
-    pub fn power(&self) -> f32 {
+    /// In f64: an environment's pi R^2 passes the f32 range for a scene
+    /// radius above ~1e19, and an infinite weight would leave the scene with
+    /// no light sampling at all.
+    pub fn power(&self) -> f64 {
+        let pi = std::f64::consts::PI;
         match self {
-            Light::Area(a) => PI * a.area * a.le.luminance() * if a.two_sided { 2.0 } else { 1.0 },
-            Light::Point(p) => 4.0 * PI * p.intensity.luminance(),
-            Light::Environment(e) => 4.0 * PI * PI * e.radius * e.radius * e.le.luminance(),
+            Light::Area(a) => pi * a.area as f64 * a.le.luminance() as f64 * if a.two_sided { 2.0 } else { 1.0 },
+            Light::Point(p) => 4.0 * pi * p.intensity.luminance() as f64,
+            Light::Environment(e) => 4.0 * pi * pi * (e.radius as f64).powi(2) * e.le.luminance() as f64,
         }
     }
 

@@ -1,10 +1,13 @@
 //! The `prism` command line.
 
-use anyhow::{bail, ensure, Context, Result};
+use anyhow::{anyhow, bail, ensure, Context, Result};
 use clap::{Parser, Subcommand};
+use prism::camera::Camera;
 use prism::film::{self, DroppedSamples, Film};
 use prism::integrators::{self, Integrator, IntegratorOptions, MisHeuristic, INTEGRATORS};
-use prism::render::{render_chunked, render_with_strategies, RenderOptions, RenderStats, StrategyImages};
+use prism::render::{
+    check_threads, render_chunked, render_with_strategies, RenderOptions, RenderStats, StrategyImages,
+};
 use prism::render_state::{fnv1a, Identity, RenderState};
 use prism::scene::{load_scene, Scene};
 use prism::stats::{pixel_mean_variance, render_pass_films};
@@ -240,10 +243,13 @@ fn reference_command(a: ReferenceArgs) -> Result<()> {
     if a.spp == 0 || a.passes < 2 || a.block == 0 || a.width % a.block != 0 || a.height % a.block != 0 {
         bail!("need --spp >= 1, --passes >= 2, and --width/--height multiples of --block");
     }
+    Camera::check_resolution(a.width, a.height).map_err(|e| anyhow!("--width, --height: {e}"))?;
+    check_threads(a.threads)?;
     let mut builder = load_scene(&a.scene)?;
     builder.set_resolution(a.width, a.height);
     let integrator = integrators::create(&a.integrator, &IntegratorOptions::default()).map_err(anyhow::Error::msg)?;
     check_writable(&a.out)?;
+    check_outputs(&[("the scene", &a.scene)], &[("--out", &a.out), ("its sidecar", &a.out.with_extension("json"))])?;
     let scene = builder.build();
     let name = a.scene.display().to_string();
     let (image, meta) = prism::reference::make_reference(
@@ -298,6 +304,35 @@ fn check_writable(path: &Path) -> Result<()> {
     Ok(())
 }
 
+/// Refuses outputs that would replace an input or one another: `prism render
+/// s.json --out s.exr` would write its sidecar, s.json, over the scene.
+/// Files are named by their role ("the scene", "--png") and compared after
+/// resolving their directories (and the file, if it exists), so `./s.json`
+/// and `dir/../s.json` are the same file.
+fn check_outputs(inputs: &[(&str, &Path)], outputs: &[(&str, &Path)]) -> Result<()> {
+    let resolve = |p: &Path| -> PathBuf {
+        if let Ok(c) = std::fs::canonicalize(p) {
+            return c;
+        }
+        let dir = p.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        let dir = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
+        dir.join(p.file_name().unwrap_or_default())
+    };
+    let inputs: Vec<_> = inputs.iter().map(|&(role, p)| (resolve(p), role, p)).collect();
+    let mut written: Vec<(PathBuf, &str, &Path)> = Vec::new();
+    for &(role, out) in outputs {
+        let key = resolve(out);
+        if let Some((_, input, p)) = inputs.iter().find(|(k, ..)| *k == key) {
+            bail!("{role} {} would replace {input} {}: choose another output name", out.display(), p.display());
+        }
+        if let Some((_, other, p)) = written.iter().find(|(k, ..)| *k == key) {
+            bail!("{role} {} and {other} {} are the same file", out.display(), p.display());
+        }
+        written.push((key, role, out));
+    }
+    Ok(())
+}
+
 /// What every kind of render shares: the scene, its estimator, the options
 /// and what identifies the render (for checkpoints, parts and sidecars).
 struct Setup {
@@ -323,6 +358,7 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
     if a.checkpoint_every.is_some_and(|s| !(s >= 0.0 && s.is_finite())) {
         bail!("--checkpoint-every must be a number of seconds >= 0");
     }
+    check_threads(a.threads)?;
     let seed = a.seed.or(defaults.seed).unwrap_or(0);
     let max_depth = a.max_depth.or(defaults.max_depth).unwrap_or(IntegratorOptions::default().max_depth);
     let integrator =
@@ -339,6 +375,7 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
         if w == 0 || h == 0 {
             bail!("--width and --height must be given together and be at least 1");
         }
+        Camera::check_resolution(w, h).map_err(|e| anyhow!("--width, --height: {e}"))?;
         builder.set_resolution(w, h);
     }
     if a.out.extension().and_then(|e| e.to_str()) != Some("exr") {
@@ -348,6 +385,8 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
     if let Some(png) = &a.png {
         check_writable(png)?;
     }
+    let outputs = render_outputs(a);
+    check_outputs(&[("the scene", &a.scene)], &outputs.iter().map(|(r, p)| (*r, p.as_path())).collect::<Vec<_>>())?;
     let scene_bytes = std::fs::read(&a.scene).with_context(|| format!("cannot read {}", a.scene.display()))?;
     let scene = builder.build();
     let identity = Identity {
@@ -362,6 +401,23 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
     };
     let opts = RenderOptions { seed, threads: a.threads, progress: !a.quiet };
     Ok(Setup { scene, integrator, identity, spp, opts })
+}
+
+/// Every file a render writes beside --out, by role (not the per-strategy
+/// images, which go to their own directory).
+fn render_outputs(a: &RenderArgs) -> Vec<(&'static str, PathBuf)> {
+    let mut outs = vec![("--out", a.out.clone()), ("its sidecar", a.out.with_extension("json"))];
+    outs.extend(a.png.clone().map(|p| ("--png", p)));
+    if a.passes.is_some() {
+        outs.push(("its variance image", a.out.with_extension("var.exr")));
+    }
+    if a.sample_range.is_some() {
+        outs.push(("its state file", a.out.with_extension("state")));
+    }
+    if a.checkpoint_every.is_some() {
+        outs.push(("its checkpoint", a.out.with_extension("ckpt")));
+    }
+    outs
 }
 
 fn render_command(a: RenderArgs) -> Result<()> {
@@ -480,21 +536,23 @@ fn merge_command(out: &Path, parts: &[PathBuf]) -> Result<()> {
         bail!("the merge output must name an .exr file, got {}", out.display());
     }
     check_writable(out)?;
-    let states = parts
+    let inputs: Vec<PathBuf> = parts.iter().map(|p| p.with_extension("state")).collect();
+    let (state, sidecar) = (out.with_extension("state"), out.with_extension("json"));
+    check_outputs(
+        &inputs.iter().map(|p| ("the part state", p.as_path())).collect::<Vec<_>>(),
+        &[("the merged image", out), ("its sidecar", &sidecar), ("its state file", &state)],
+    )?;
+    let states = inputs
         .iter()
-        .map(|p| {
-            let path = p.with_extension("state");
-            Ok((path.display().to_string(), RenderState::load(&path)?))
-        })
+        .map(|path| Ok((path.display().to_string(), RenderState::load(path)?)))
         .collect::<Result<Vec<_>>>()?;
     let merged = RenderState::merge(states)?;
     let (id, film) = (&merged.identity, &merged.film);
-    let state = out.with_extension("state");
     RenderState::save(&state, id, &merged.sample_ranges, film)?;
     film::write_exr(out, id.width, id.height, &film.image())?;
-    let mut sidecar = Sidecar::new(id.clone(), film.spp, &merged.sample_ranges, film.dropped);
-    sidecar.state = Some(file_name(&state));
-    film::write_json(&out.with_extension("json"), &sidecar)?;
+    let mut meta = Sidecar::new(id.clone(), film.spp, &merged.sample_ranges, film.dropped);
+    meta.state = Some(file_name(&state));
+    film::write_json(&sidecar, &meta)?;
     eprintln!("merged {} parts: {} spp (samples {:?})", parts.len(), film.spp, merged.sample_ranges);
     warn_dropped(&film.dropped);
     Ok(())

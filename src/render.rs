@@ -233,6 +233,17 @@ pub fn render_with_strategies(
     stats
 }
 
+/// The most worker threads a render may ask for: each has its own stack
+/// and workspace, and the OS refuses far fewer than `usize::MAX` (the
+/// library panics when it cannot start the pool; the commands check first).
+pub const MAX_THREADS: usize = 1024;
+
+/// A command-line thread count: 0 (all cores) to `MAX_THREADS`.
+pub fn check_threads(threads: usize) -> anyhow::Result<()> {
+    anyhow::ensure!(threads <= MAX_THREADS, "--threads {threads}: at most {MAX_THREADS} (0 = all cores)");
+    Ok(())
+}
+
 fn thread_pool(opts: &RenderOptions) -> ThreadPool {
     rayon::ThreadPoolBuilder::new().num_threads(opts.threads).build().expect("thread pool")
 }

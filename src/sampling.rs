@@ -138,15 +138,15 @@ struct AliasBin {
 
 impl AliasTable {
     /// Returns None when there are no weights or they sum to zero.
-    pub fn new(weights: &[f32]) -> Option<Self> {
-        let sum: f64 = weights.iter().map(|&w| w.max(0.0) as f64).sum();
+    pub fn new(weights: &[f64]) -> Option<Self> {
+        let sum: f64 = weights.iter().map(|&w| w.max(0.0)).sum();
         if weights.is_empty() || sum <= 0.0 || !sum.is_finite() {
             return None;
         }
         let n = weights.len();
         let mut bins: Vec<AliasBin> =
-            weights.iter().map(|&w| AliasBin { q: 0.0, pmf: (w.max(0.0) as f64 / sum) as f32, alias: 0 }).collect();
-        let mut p: Vec<f64> = weights.iter().map(|&w| w.max(0.0) as f64 / sum * n as f64).collect();
+            weights.iter().map(|&w| AliasBin { q: 0.0, pmf: (w.max(0.0) / sum) as f32, alias: 0 }).collect();
+        let mut p: Vec<f64> = weights.iter().map(|&w| w.max(0.0) / sum * n as f64).collect();
         let (mut under, mut over): (Vec<usize>, Vec<usize>) = (0..n).partition(|&i| p[i] < 1.0);
         while let (Some(&u), Some(&o)) = (under.last(), over.last()) {
             under.pop();
@@ -216,7 +216,7 @@ mod tests {
             counts[i] += 1;
         }
         for i in 0..4 {
-            let p = w[i] / 10.0;
+            let p = (w[i] / 10.0) as f32;
             let sigma = (n as f32 * p * (1.0 - p)).sqrt().max(1.0);
             assert!(((counts[i] as f32) - n as f32 * p).abs() < 5.0 * sigma, "{counts:?}");
         }

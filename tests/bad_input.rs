@@ -267,6 +267,38 @@ const CASES: &[Case] = &[
         position: "",
         words: &["cannot write /no/such/dir/preview.png: directory /no/such/dir does not exist"],
     },
+    Case {
+        id: "unknown-integrator-in-scene",
+        edits: &[("\"lights\"", "\"render\": {\"integrator\": \"magic\"},\n  \"lights\"")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:5:",
+        words: &["render.integrator: unknown integrator \"magic\" (valid:"],
+    },
+    Case {
+        id: "image-too-large",
+        edits: &[("\"width\": 8, \"height\": 8", "\"width\": 100000, \"height\": 100000")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:2:",
+        words: &["camera.width: 100000 x 100000 = 10000000000 pixels is more than the 134217728"],
+    },
+    Case {
+        id: "image-too-large-flag",
+        edits: &[],
+        args: &["--width", "4294967295", "--height", "4294967295"],
+        out: "out.exr",
+        position: "",
+        words: &["--width, --height: 4294967295 x 4294967295", "pixels is more than the 134217728"],
+    },
+    Case {
+        id: "too-many-threads",
+        edits: &[],
+        args: &["--threads", "100000"],
+        out: "out.exr",
+        position: "",
+        words: &["--threads 100000: at most 1024"],
+    },
 ];
 
 /// As the `to` of an edit: cut the text where `from` starts.

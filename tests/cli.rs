@@ -141,3 +141,55 @@ fn integrators_are_listed() {
     let s = String::from_utf8_lossy(&o.stdout);
     assert!(s.contains("path") && s.contains("simple_path"), "{s}");
 }
+
+/// No output may replace an input or another output: `render s.json --out
+/// s.exr` would write its sidecar over the scene; `--png` may not be `--out`
+/// or the sidecar; a merge's state may not be a part's; `reference` writes
+/// a sidecar too. Each is one error, and the inputs are untouched.
+#[test]
+fn outputs_never_replace_the_scene_or_each_other() {
+    let d = temp_dir("collide");
+    let scene = write(&d, "s.json", scenes::TINY_SCENE);
+    std::fs::create_dir_all(d.join("sub")).unwrap();
+    let path = |name: &str| d.join(name).display().to_string();
+    let render = |extra: &[&str]| {
+        let mut args = vec!["render", scene.as_str(), "--spp", "1", "--threads", "1", "--quiet"];
+        args.extend_from_slice(extra);
+        prism(&args)
+    };
+    let fails_with = |o: Output, words: &str| {
+        assert!(!o.status.success(), "succeeded: expected an error with {words:?}");
+        let e = stderr(&o);
+        assert!(e.lines().filter(|l| l.starts_with("error:")).count() == 1 && e.contains(words), "{e}");
+    };
+    fails_with(render(&["--out", &path("s.exr")]), "its sidecar");
+    fails_with(render(&["--out", &path("sub/../s.exr")]), "would replace the scene");
+    fails_with(render(&["--out", &path("a.exr"), "--png", &path("a.exr")]), "--png");
+    fails_with(render(&["--out", &path("a.exr"), "--png", &path("a.json")]), "are the same file");
+    fails_with(
+        prism(&[
+            "reference",
+            &scene,
+            "--spp",
+            "1",
+            "--passes",
+            "2",
+            "--width",
+            "8",
+            "--height",
+            "8",
+            "--out",
+            &path("s.exr"),
+        ]),
+        "would replace the scene",
+    );
+    assert_eq!(std::fs::read_to_string(&scene).unwrap(), scenes::TINY_SCENE, "the scene changed");
+    assert!(!d.join("a.exr").exists(), "an output was written");
+
+    let part = prism(&["render", &scene, "--sample-range", "0..1", "--quiet", "--out", &path("p1.exr")]);
+    assert!(part.status.success(), "{}", stderr(&part));
+    let state = std::fs::read(d.join("p1.state")).unwrap();
+    fails_with(prism(&["merge", &path("p1.exr"), &path("p1.exr")]), "would replace the part state");
+    assert_eq!(std::fs::read(d.join("p1.state")).unwrap(), state, "the part's state changed");
+    let _ = std::fs::remove_dir_all(&d);
+}

@@ -473,3 +473,24 @@ fn cornell_gltf_rgb_matches_json_rgb_variant() {
         &block_stats(&json, 1001),
     );
 }
+
+/// Faults gltf-json's own validator does not catch safely: a POSITION
+/// accessor index out of range (its validator indexes without a bounds
+/// check and would panic) is a named error; factors outside [0, 1] (invalid
+/// glTF) are clamped with a warning naming the material and the value.
+#[test]
+fn bad_accessor_indices_and_factors_are_reported() {
+    let mut v = read_json(&dir().join("Triangle.gltf"));
+    v["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = json!(7);
+    let e = parse(&v, "Triangle (POSITION 7)").err().unwrap();
+    assert!(e.contains("meshes[0].primitives[0].attributes.POSITION: accessor 7 does not exist"), "{e}");
+
+    let mut v = read_json(&dir().join("Box.gltf"));
+    let pbr = &mut v["materials"][0]["pbrMetallicRoughness"];
+    pbr["baseColorFactor"] = json!([-1.0, 2.0, 0.5, 1.0]);
+    pbr["roughnessFactor"] = json!(-1.0);
+    let g = parse(&v, "Box (factors out of range)").unwrap();
+    assert!(has(&g.messages, "baseColorFactor [-1.0, 2.0, 0.5, 1.0] is outside [0, 1]"), "{:?}", g.messages);
+    assert!(has(&g.messages, "roughnessFactor [-1.0] is outside [0, 1]"), "{:?}", g.messages);
+    assert!(!has(&g.messages, "metallicFactor"), "{:?}", g.messages);
+}

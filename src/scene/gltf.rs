@@ -231,6 +231,22 @@ impl Importer {
                 ));
             }
         }
+        // gltf-json's validator reads each primitive's POSITION accessor
+        // without a bounds check (gltf-json 1.4.1, mesh.rs:151): an index
+        // out of range would panic there instead of being reported.
+        for (m, mesh) in json.meshes.iter().enumerate() {
+            for (p, primitive) in mesh.primitives.iter().enumerate() {
+                let position = primitive
+                    .attributes
+                    .get(&gltf::json::validation::Checked::Valid(gltf::json::mesh::Semantic::Positions));
+                if let Some(i) = position.filter(|i| i.value() >= json.accessors.len()) {
+                    return Err(fail(
+                        &format!("meshes[{m}].primitives[{p}].attributes.POSITION"),
+                        format!("accessor {} does not exist ({} accessors)", i.value(), json.accessors.len()),
+                    ));
+                }
+            }
+        }
         let doc = gltf::Document::from_json(json).map_err(|e| fail("", format!("invalid glTF: {e}")))?;
         let mut imp = Importer {
             file: file.to_string(),
@@ -556,6 +572,16 @@ impl Importer {
     /// The BSDF of a glTF material (rules in the module header).
     fn bsdf(&mut self, m: &gltf::Material, label: &str) -> Bsdf {
         let pbr = m.pbr_metallic_roughness();
+        let factors = [
+            ("baseColorFactor", &pbr.base_color_factor()[..]),
+            ("metallicFactor", &[pbr.metallic_factor()][..]),
+            ("roughnessFactor", &[pbr.roughness_factor()][..]),
+        ];
+        for (name, values) in factors {
+            if !values.iter().all(|v| (0.0..=1.0).contains(v)) {
+                self.warn(label, format!("{name} {values:?} is outside [0, 1] (invalid glTF): clamped"));
+            }
+        }
         let mut base = pbr.base_color_factor();
         if let Some(info) = pbr.base_color_texture() {
             if let Some(mean) = self.texture_mean(&info.texture(), true, label, "baseColorTexture") {

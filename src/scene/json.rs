@@ -844,8 +844,8 @@ fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
     if !(c.fov.is_finite() && c.fov > 0.0 && c.fov < 180.0) {
         return Err(ctx.err(&with(&cam_path, "fov"), "fov must be between 0 and 180 degrees"));
     }
-    if c.width == 0 || c.height == 0 {
-        return Err(ctx.err(&with(&cam_path, "width"), "width and height must be >= 1"));
+    if let Err(e) = Camera::check_resolution(c.width, c.height) {
+        return Err(ctx.err(&with(&cam_path, "width"), e));
     }
     // normalize_or_zero is zero on overflow as well as on a zero vector.
     let forward = (look_at - position).normalize_or_zero();
@@ -908,6 +908,11 @@ fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
     let r = &f.render;
     if r.spp == Some(0) {
         return Err(ctx.err(&[Seg::Key("render".into()), Seg::Key("spp".into())], "spp must be at least 1"));
+    }
+    if let Some(name) = &r.integrator {
+        if let Err(e) = crate::integrators::create(name, &Default::default()) {
+            return Err(ctx.err(&[Seg::Key("render".into()), Seg::Key("integrator".into())], e));
+        }
     }
     b.defaults = RenderDefaults { spp: r.spp, max_depth: r.max_depth, integrator: r.integrator.clone(), seed: r.seed };
     Ok(b)

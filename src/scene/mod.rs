@@ -282,7 +282,7 @@ impl SceneBuilder {
             lights.push(light);
             light_names.push(name);
         }
-        let powers: Vec<f32> = lights.iter().map(Light::power).collect();
+        let powers: Vec<f64> = lights.iter().map(Light::power).collect();
         let light_sampler = AliasTable::new(&powers);
         Scene {
             camera: self.camera,
