@@ -28,7 +28,16 @@
 //! picks the one the budget, the time chart and the efficiency use: `wall`
 //! (default) is what a user waits; `cpu` is the work done, and stays fair
 //! between integrators on a machine shared with other jobs, where wall time
-//! depends on what else happened to run at the same moment.
+//! depends on what else happened to run at the same moment. A run shorter
+//! than ten ticks of its clock (`Clock::min_seconds`: 0.1 CPU seconds) gets
+//! no efficiency and no rank, and a note says so.
+//!
+//! Notes (in report.md and results.json, and printed) also flag a reference
+//! whose own noise is over 10 % of an integrator's measured relMSE (the
+//! ratios are then pulled towards 1), a reference rendered from another
+//! scene file, and one whose integrator cannot sample the whole scene (it is
+//! biased, and every error measured against it). No output may replace the
+//! scene, the reference or another output (`film::check_outputs`).
 //!
 //! Integrator specs: `name` or `name:heuristic` (`bdpt:uniform`), so one run
 //! can compare MIS heuristics of the same estimator as separate lines;
@@ -57,7 +66,7 @@
 //! | --save-exr               | off            | also write each final image as `DIR/<label>.exr`    |
 
 use crate::camera::Camera;
-use crate::film::{read_exr, write_exr, write_json, DroppedSamples, Film};
+use crate::film::{check_outputs, read_exr, write_exr, write_json, DroppedSamples, Film};
 use crate::integrators::{self, IntegratorOptions, MisHeuristic};
 use crate::reference::{make_reference, read_reference, write_reference, ReferenceMeta};
 use crate::render::{render, RenderOptions};
@@ -129,7 +138,7 @@ pub struct ConvergeArgs {
     #[arg(long)]
     pub reference_out: Option<PathBuf>,
     /// Time budget per integrator, in seconds of `--clock`.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub time: Option<f64>,
     /// What seconds are: `wall` (elapsed) or `cpu` (CPU time of all render
     /// threads: fair on a machine shared with other jobs).
@@ -204,6 +213,9 @@ pub fn command(a: ConvergeArgs) -> Result<()> {
         command: std::env::args().collect::<Vec<_>>().join(" "),
     };
     let results = run(&config)?;
+    for n in &results.notes {
+        eprintln!("note: {n}");
+    }
     eprintln!("{}", efficiency_table(&results));
     eprintln!("wrote {}", config.out.join("report.md").display());
     Ok(())
@@ -289,6 +301,15 @@ impl Clock {
         match self {
             Clock::Wall => "seconds",
             Clock::Cpu => "CPU seconds",
+        }
+    }
+
+    /// The shortest time this clock measures well enough to rank a run by:
+    /// ten of its ticks (/proc's CPU times advance in 10 ms ticks).
+    pub fn min_seconds(self) -> f64 {
+        match self {
+            Clock::Wall => 1e-8,
+            Clock::Cpu => 0.1,
         }
     }
 }
@@ -384,7 +405,9 @@ pub struct IntegratorResult {
     pub rel_mse: f64,
     pub mse: f64,
     pub mae: f64,
-    /// 1 / (relMSE x seconds) at the last checkpoint, seconds on the run's clock.
+    /// 1 / (relMSE x seconds) at the last checkpoint, seconds on the run's
+    /// clock; NaN (null in the JSON) for a run too short to measure.
+    #[serde(deserialize_with = "null_as_nan")]
     pub efficiency: f64,
     /// Samples per wall second.
     pub samples_per_second: f64,
@@ -445,7 +468,9 @@ impl ConvergeResults {
     /// Indices of `integrators`, most efficient first.
     pub fn ranking(&self) -> Vec<usize> {
         let mut order: Vec<usize> = (0..self.integrators.len()).collect();
-        order.sort_by(|&a, &b| self.integrators[b].efficiency.total_cmp(&self.integrators[a].efficiency));
+        // Unmeasurable (NaN) efficiencies last.
+        let key = |i: usize| Some(self.integrators[i].efficiency).filter(|e| !e.is_nan());
+        order.sort_by(|&a, &b| key(b).partial_cmp(&key(a)).unwrap_or(std::cmp::Ordering::Equal));
         order
     }
 }
@@ -477,6 +502,13 @@ pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
         ensure!(t.is_finite() && t > 0.0, "--time must be a positive number of seconds");
     }
     ensure!(cfg.max_spp != Some(0), "--spp must be at least 1");
+    ensure!(cfg.exposure.is_none_or(f32::is_finite), "--exposure must be a finite number of stops");
+    if let ReferenceSource::Render { integrator, spp, passes, .. } = &cfg.reference {
+        ensure!(*passes >= 2, "--reference-passes must be at least 2");
+        ensure!(*spp >= 1, "--reference-spp must be at least 1");
+        integrators::create(integrator, &IntegratorOptions::default()).map_err(anyhow::Error::msg)?;
+    }
+    check_converge_outputs(cfg)?;
     let mut builder = load_scene(&cfg.scene)?;
     if let Some((w, h)) = cfg.resolution {
         builder.set_resolution(w, h);
@@ -534,6 +566,27 @@ pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
         info.noise_floor = Some(x.rel_mse / (n_ref as f64 / x.spp as f64 + 1.0));
         info.noise_floor_method = Some(format!("same estimator ({})", x.label));
     }
+    for x in &results {
+        if x.efficiency.is_nan() {
+            notes.push(format!(
+                "{}: {:.3} {} is below {} s, too short to measure (the CPU clock ticks every 10 ms): not \
+                 ranked; give a larger --time or --spp",
+                x.label,
+                x.seconds,
+                cfg.clock.unit(),
+                cfg.clock.min_seconds()
+            ));
+        }
+        if let Some(floor) = info.noise_floor.filter(|&f| f > 0.1 * x.rel_mse) {
+            notes.push(format!(
+                "{}: the reference's own noise (relMSE ~{floor:.2e}) is {:.0} % of the measured {:.2e}: its \
+                 efficiency ratios are pulled towards 1; render a reference with more samples",
+                x.label,
+                100.0 * floor / x.rel_mse,
+                x.rel_mse
+            ));
+        }
+    }
     let scene_comment = std::fs::read_to_string(&cfg.scene)
         .ok()
         .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
@@ -561,6 +614,38 @@ pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
     Ok(out)
 }
 
+/// Every file the run writes, by role, against its inputs (`check_outputs`):
+/// a reference rendered to `DIR/<label>.exr` would be replaced by
+/// `--save-exr`, and `--reference-out s.exr` would write its sidecar over a
+/// scene `s.json`.
+fn check_converge_outputs(cfg: &ConvergeConfig) -> Result<()> {
+    let mut inputs = vec![("the scene", cfg.scene.clone())];
+    let mut outputs: Vec<(&str, PathBuf)> = ["results.csv", "results.json", "report.md", "images.png", "errors.png"]
+        .into_iter()
+        .map(|n| ("an output", cfg.out.join(n)))
+        .collect();
+    for chart in ["error-vs-time", "error-vs-spp"] {
+        for ext in ["svg", "png"] {
+            outputs.push(("a chart", cfg.out.join(format!("{chart}.{ext}"))));
+        }
+    }
+    if cfg.save_exr {
+        outputs
+            .extend(cfg.integrators.iter().map(|s| ("a final image", cfg.out.join(format!("{}.exr", s.file_stem())))));
+    }
+    match &cfg.reference {
+        ReferenceSource::File(p) => {
+            inputs.extend([("the reference", p.clone()), ("its sidecar", p.with_extension("json"))])
+        }
+        ReferenceSource::Render { out, .. } => {
+            outputs.extend([("the reference", out.clone()), ("its sidecar", out.with_extension("json"))])
+        }
+    }
+    let inputs: Vec<(&str, &Path)> = inputs.iter().map(|(r, p)| (*r, p.as_path())).collect();
+    let outputs: Vec<(&str, &Path)> = outputs.iter().map(|(r, p)| (*r, p.as_path())).collect();
+    check_outputs(&inputs, &outputs)
+}
+
 fn obtain_reference(
     cfg: &ConvergeConfig,
     scene: &Scene,
@@ -582,8 +667,6 @@ fn obtain_reference(
             }
         }
         ReferenceSource::Render { integrator, spp, passes, out } => {
-            ensure!(*passes >= 2, "--reference-passes must be at least 2");
-            ensure!(*spp >= 1, "--reference-spp must be at least 1");
             if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
                 std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
             }
@@ -617,6 +700,18 @@ fn obtain_reference(
         }
     };
     if let Some(m) = &meta {
+        if Path::new(&m.scene).file_name() != cfg.scene.file_name() {
+            notes.push(format!("the reference was rendered from {}, this run renders {scene_name}", m.scene));
+        }
+        // A reference from an estimator that cannot sample the whole scene
+        // is biased, and so is every error measured against it.
+        if let Ok(estimator) =
+            integrators::create(&m.integrator, &IntegratorOptions { max_depth, ..Default::default() })
+        {
+            for w in estimator.unsamplable(scene) {
+                notes.push(format!("the reference's integrator {} cannot sample this scene fully: {w}", m.integrator));
+            }
+        }
         ensure!(
             (m.width, m.height) == (w, h),
             "{} is {}x{} but the run renders {w}x{h}",
@@ -766,13 +861,27 @@ fn converge_one(
         rel_mse: last.rel_mse,
         mse: last.mse,
         mae: last.mae,
-        efficiency: 1.0 / (last.rel_mse * last.time(cfg.clock)),
+        efficiency: efficiency(last.rel_mse, last.time(cfg.clock), cfg.clock),
         samples_per_second: last.spp as f64 * (w * h) as f64 / last.seconds,
         slope,
         dropped: film.dropped,
         checkpoints,
     };
     Ok((result, film.image()))
+}
+
+fn null_as_nan<'de, D: serde::Deserializer<'de>>(d: D) -> std::result::Result<f64, D::Error> {
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
+}
+
+/// 1 / (relMSE x seconds), NaN (unranked) for a time the clock cannot
+/// measure well (`Clock::min_seconds`).
+fn efficiency(rel_mse: f64, seconds: f64, clock: Clock) -> f64 {
+    if seconds >= clock.min_seconds() {
+        1.0 / (rel_mse * seconds)
+    } else {
+        f64::NAN
+    }
 }
 
 /// Least-squares slope of ln y against ln x (None with fewer than 3 points).
@@ -864,10 +973,13 @@ pub fn efficiency_table(r: &ConvergeResults) -> String {
     for (rank, &i) in order.iter().enumerate() {
         let x = &r.integrators[i];
         let flag = if x.warnings.is_empty() { "" } else { " (!)" };
+        // An unmeasurably short run has no efficiency and no rank.
+        let measured = !x.efficiency.is_nan();
+        let or_dash = |v: String| if measured { v } else { "-".to_string() };
         let _ = writeln!(
             s,
-            "| {} | {}{flag} | {} | {:.2} | {:.3} | {:.3e} | {:.3e} | {:.3e} | {:.3e} | {:.3} | {} |",
-            rank + 1,
+            "| {} | {}{flag} | {} | {:.2} | {:.3} | {:.3e} | {:.3e} | {:.3e} | {} | {} | {} |",
+            or_dash((rank + 1).to_string()),
             x.label,
             x.spp,
             x.seconds,
@@ -875,8 +987,8 @@ pub fn efficiency_table(r: &ConvergeResults) -> String {
             x.rel_mse,
             x.mse,
             x.mae,
-            x.efficiency,
-            x.efficiency / best,
+            or_dash(format!("{:.3e}", x.efficiency)),
+            or_dash(format!("{:.3}", x.efficiency / best)),
             x.slope.map_or("-".to_string(), |v| format!("{v:.2}"))
         );
     }

@@ -15,10 +15,10 @@
 //! render, whatever the split (docs/cluster.md).
 
 use crate::spectrum::{to_linear_srgb, SampledSpectrum, SampledWavelengths};
-use anyhow::{ensure, Context, Result};
+use anyhow::{bail, ensure, Context, Result};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Samples kept out of the film, by reason.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -100,13 +100,12 @@ pub fn to_fixed(rgb: Vec3) -> [i128; 3] {
 #[inline]
 #[must_use]
 pub fn add_fixed(sum: &mut [i128; 3], v: [i128; 3]) -> bool {
-    match [0, 1, 2].map(|c| sum[c].checked_add(v[c])) {
-        [Some(r), Some(g), Some(b)] => {
-            *sum = [r, g, b];
-            true
-        }
-        _ => false,
+    let [(r, o_r), (g, o_g), (b, o_b)] = [0, 1, 2].map(|c| sum[c].overflowing_add(v[c]));
+    if o_r | o_g | o_b {
+        return false;
     }
+    *sum = [r, g, b];
+    true
 }
 
 pub struct Film {
@@ -154,6 +153,35 @@ impl Film {
         self.dropped.merge(&other.dropped);
         Ok(())
     }
+}
+
+/// Refuses outputs that would replace an input or one another: `prism render
+/// s.json --out s.exr` would write its sidecar, s.json, over the scene.
+/// Files are named by their role ("the scene", "--png") and compared after
+/// resolving their directories (and the file, if it exists), so `./s.json`
+/// and `dir/../s.json` are the same file.
+pub fn check_outputs(inputs: &[(&str, &Path)], outputs: &[(&str, &Path)]) -> Result<()> {
+    let resolve = |p: &Path| -> PathBuf {
+        if let Ok(c) = std::fs::canonicalize(p) {
+            return c;
+        }
+        let dir = p.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        let dir = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
+        dir.join(p.file_name().unwrap_or_default())
+    };
+    let inputs: Vec<_> = inputs.iter().map(|&(role, p)| (resolve(p), role, p)).collect();
+    let mut written: Vec<(PathBuf, &str, &Path)> = Vec::new();
+    for &(role, out) in outputs {
+        let key = resolve(out);
+        if let Some((_, input, p)) = inputs.iter().find(|(k, ..)| *k == key) {
+            bail!("{role} {} would replace {input} {}: choose another output name", out.display(), p.display());
+        }
+        if let Some((_, other, p)) = written.iter().find(|(k, ..)| *k == key) {
+            bail!("{role} {} and {other} {} are the same file", out.display(), p.display());
+        }
+        written.push((key, role, out));
+    }
+    Ok(())
 }
 
 /// Writes through `write` to a temporary file beside `path`, flushes it to

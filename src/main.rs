@@ -3,7 +3,7 @@
 use anyhow::{anyhow, bail, ensure, Context, Result};
 use clap::{Parser, Subcommand};
 use prism::camera::Camera;
-use prism::film::{self, DroppedSamples, Film};
+use prism::film::{self, check_outputs, DroppedSamples, Film};
 use prism::integrators::{self, Integrator, IntegratorOptions, MisHeuristic, INTEGRATORS};
 use prism::render::{
     check_threads, render_chunked, render_with_strategies, RenderOptions, RenderStats, StrategyImages,
@@ -300,35 +300,6 @@ fn check_writable(path: &Path) -> Result<()> {
     let _ = std::fs::remove_file(probe);
     if path.is_dir() {
         bail!("cannot write {}: it is a directory", path.display());
-    }
-    Ok(())
-}
-
-/// Refuses outputs that would replace an input or one another: `prism render
-/// s.json --out s.exr` would write its sidecar, s.json, over the scene.
-/// Files are named by their role ("the scene", "--png") and compared after
-/// resolving their directories (and the file, if it exists), so `./s.json`
-/// and `dir/../s.json` are the same file.
-fn check_outputs(inputs: &[(&str, &Path)], outputs: &[(&str, &Path)]) -> Result<()> {
-    let resolve = |p: &Path| -> PathBuf {
-        if let Ok(c) = std::fs::canonicalize(p) {
-            return c;
-        }
-        let dir = p.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-        let dir = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
-        dir.join(p.file_name().unwrap_or_default())
-    };
-    let inputs: Vec<_> = inputs.iter().map(|&(role, p)| (resolve(p), role, p)).collect();
-    let mut written: Vec<(PathBuf, &str, &Path)> = Vec::new();
-    for &(role, out) in outputs {
-        let key = resolve(out);
-        if let Some((_, input, p)) = inputs.iter().find(|(k, ..)| *k == key) {
-            bail!("{role} {} would replace {input} {}: choose another output name", out.display(), p.display());
-        }
-        if let Some((_, other, p)) = written.iter().find(|(k, ..)| *k == key) {
-            bail!("{role} {} and {other} {} are the same file", out.display(), p.display());
-        }
-        written.push((key, role, out));
     }
     Ok(())
 }

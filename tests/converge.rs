@@ -250,5 +250,84 @@ fn bad_arguments_fail_clearly() {
         let e = String::from_utf8_lossy(&r.stderr);
         assert!(!r.status.success() && e.contains(message), "{args:?}: {e}");
     }
+    // Checked before anything is created or rendered: no output directory
+    // is left behind, and no output replaces an input or another output.
+    let scene = d.join("s.json");
+    std::fs::copy(scene_path("white-room.json"), &scene).unwrap();
+    let scene = scene.to_str().unwrap();
+    let reference_in_out = out.join("path.exr");
+    let cases: [(&[&str], &str); 4] = [
+        (
+            &["converge", scene, "--spp", "2", "--reference-spp", "2", "--reference-integrator", "magic", "--out", o],
+            "unknown integrator \"magic\"",
+        ),
+        (&["converge", scene, "--spp", "2", "--reference-spp", "2", "--exposure", "NaN", "--out", o], "--exposure"),
+        (
+            &[
+                "converge",
+                scene,
+                "--spp",
+                "2",
+                "--reference-spp",
+                "2",
+                "--reference-out",
+                &scene.replace(".json", ".exr"),
+                "--out",
+                o,
+            ],
+            "would replace the scene",
+        ),
+        (
+            &[
+                "converge",
+                scene,
+                "--integrators",
+                "path",
+                "--save-exr",
+                "--spp",
+                "2",
+                "--reference-spp",
+                "2",
+                "--reference-out",
+                reference_in_out.to_str().unwrap(),
+                "--out",
+                o,
+            ],
+            "are the same file",
+        ),
+    ];
+    for (args, message) in cases {
+        let r = prism(args);
+        let e = String::from_utf8_lossy(&r.stderr);
+        assert!(!r.status.success() && e.contains(message), "{args:?}: {e}");
+        assert!(!out.exists(), "{args:?}: left {} behind", out.display());
+    }
+    assert_eq!(std::fs::read(scene).unwrap(), std::fs::read(scene_path("white-room.json")).unwrap());
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// A run shorter than the clock can measure (CPU seconds tick every 10 ms)
+/// has no efficiency and no rank, and says so; a reference whose own noise
+/// is a large part of the measured error is named in a note.
+#[test]
+fn unmeasurable_runs_and_noisy_references_are_flagged() {
+    let d = temp_dir("flags");
+    let mut cfg = config(
+        "white-room.json",
+        "path",
+        ReferenceSource::Render { integrator: "path".into(), spp: 2, passes: 2, out: d.join("ref.exr") },
+        &d.join("o"),
+        8,
+    );
+    cfg.max_spp = Some(1);
+    cfg.clock = Clock::Cpu;
+    let r = run(&cfg).unwrap();
+    let x = &r.integrators[0];
+    assert!(x.efficiency.is_nan(), "a {} s run was ranked: efficiency {}", x.seconds, x.efficiency);
+    assert!(r.notes.iter().any(|n| n.contains("too short to measure")), "{:?}", r.notes);
+    assert!(r.notes.iter().any(|n| n.contains("the reference's own noise")), "{:?}", r.notes);
+    let json: ConvergeResults =
+        serde_json::from_str(&std::fs::read_to_string(d.join("o/results.json")).unwrap()).unwrap();
+    assert!(json.integrators[0].efficiency.is_nan(), "NaN does not round-trip through results.json");
     std::fs::remove_dir_all(&d).unwrap();
 }
