@@ -61,8 +61,9 @@ impl DroppedSamples {
             return None;
         }
         let rgb = to_linear_srgb(l, lambda);
-        // (`max_element` would pass over a NaN channel.)
-        if !(rgb.is_finite() && rgb.abs().max_element() <= MAX_SAMPLE) {
+        // Lane by lane, so that a NaN channel fails too (`max_element`
+        // would pass over it).
+        if !rgb.abs().cmple(Vec3::splat(MAX_SAMPLE)).all() {
             self.infinite += 1;
             return None;
         }
