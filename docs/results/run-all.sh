@@ -2,7 +2,7 @@
 # Regenerates docs/results/<scene>/ (see docs/results.md): for each scene of
 # the suite, a reference rendered by `prism converge` itself (kept out of the
 # repository, in target/converge-refs/) and a run of 20 CPU-seconds per
-# integrator at 128x128. About 15 minutes on an otherwise idle 2-core machine.
+# integrator at 128x128. About 9 minutes on a 2-core machine (8 min 36 s in session 8).
 #
 #   sh docs/results/run-all.sh            # builds target/release/prism first
 #   PRISM=/path/to/prism sh docs/results/run-all.sh
