@@ -4,7 +4,7 @@
 //! (`deny_unknown_fields`, so a misspelt parameter is an error, as in
 //! Mitsuba), then `resolve` turns names into spectra, materials and meshes.
 //! Every error names the file, line, column and field path:
-//! `scenes/x.json:14:9: materials.glass.ior: unknown glass "BK8" (known: ...)`.
+//! `scenes/x.json:14:9: materials.glass.ior: unknown spectrum "BK8" (known: ...)`.
 
 use super::locate::{locate, path_string, Seg};
 use super::{RenderDefaults, SceneBuilder};
