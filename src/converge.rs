@@ -1042,8 +1042,11 @@ fn report_md(r: &ConvergeResults) -> String {
             let _ = writeln!(s, "- {}: {w}", x.label);
         }
     }
+    if !r.notes.is_empty() {
+        let _ = writeln!(s, "\nNotes:\n");
+    }
     for n in &r.notes {
-        let _ = writeln!(s, "- note: {n}");
+        let _ = writeln!(s, "- {n}");
     }
     let _ = writeln!(
         s,
