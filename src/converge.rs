@@ -257,7 +257,13 @@ impl IntegratorSpec {
                         specs.push(IntegratorSpec { label, name: name.to_string(), mis: h });
                     }
                 }
-                None => specs.push(IntegratorSpec { label: name.to_string(), name: name.to_string(), mis: mis[0] }),
+                // (Power: what a MIS-aware estimator takes by default, and
+                // what the others record, since --mis does not reach them.)
+                None => specs.push(IntegratorSpec {
+                    label: name.to_string(),
+                    name: name.to_string(),
+                    mis: MisHeuristic::Power,
+                }),
             }
         }
         ensure!(!specs.is_empty(), "no integrators given");
@@ -1399,6 +1405,9 @@ mod tests {
         assert_eq!(p("bdpt,bdpt:uniform", &[]).unwrap(), ["bdpt", "bdpt:uniform"]);
         let both = [MisHeuristic::Power, MisHeuristic::Uniform];
         assert_eq!(p("path,bdpt", &both).unwrap(), ["path", "bdpt:power", "bdpt:uniform"]);
+        let uniform = IntegratorSpec::parse_list("path,bdpt", &[MisHeuristic::Uniform]).unwrap();
+        let mis: Vec<_> = uniform.iter().map(|s| (s.label.as_str(), s.mis)).collect();
+        assert_eq!(mis, [("path", MisHeuristic::Power), ("bdpt:uniform", MisHeuristic::Uniform)], "--mis reached path");
         assert!(p("path:uniform", &[]).is_err());
         assert!(p("bdpt:magic", &[]).is_err());
         assert!(p("nosuch", &[]).is_err());
