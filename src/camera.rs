@@ -188,8 +188,14 @@ mod tests {
     #[test]
     fn importance_integrates_to_one_over_the_image() {
         // Integral over the image's solid angle of We cos = 1, computed on the
-        // z = 1 plane where d omega = cos^3 dA.
+        // z = 1 plane where d omega = cos^3 dA. Its area element uses the
+        // camera's own A (We = 1 / (A cos^4) makes the sum 1 for any A), so
+        // A is checked first against the field of view: 60 degrees
+        // vertical, 64 x 48 pixels.
         let c = cam();
+        let half_h = (30f64).to_radians().tan();
+        let area = (2.0 * half_h) * (2.0 * half_h * 64.0 / 48.0);
+        assert!((c.image_area() as f64 / area - 1.0).abs() < 1e-6, "A = {}, expected {area}", c.image_area());
         let n = 400;
         let mut sum = 0.0f64;
         for i in 0..n {
