@@ -315,7 +315,10 @@ fn mirror_seen_directly() {
 /// a looser budget (colour rule of `prism::stats::Verdict`), with a 5% bias
 /// as the control (10% for path and light tracing in the gap room): light tracing on the
 /// diffuse-first pixels of the caustic scene, path and light tracing in the
-/// gap room, BDPT in both. Path tracing on the caustic and BSDF-only path
+/// gap room. BDPT itself is checked for bad numbers only here (its run
+/// against its own reference would compare the estimator with itself; its
+/// agreement with the others is proven in tests/agreement.rs and
+/// tests/bdpt.rs). Path tracing on the caustic and BSDF-only path
 /// tracing on either reach the light only through rare BSDF-sampled hits of
 /// a small emitter: at these budgets their block means are heavy-tailed (a
 /// z of 14 at 128 spp that is noise: at 8192 spp path tracing and BDPT agree
@@ -332,11 +335,11 @@ fn caustic_and_gap_room_agree_where_sampled() {
         ("caustic.json", "simple_path", 64, None),
         ("caustic.json", "path", 64, None),
         ("caustic.json", "light", 128, Some(1.05)),
-        ("caustic.json", "bdpt", 64, Some(1.05)),
+        ("caustic.json", "bdpt", 64, None),
         ("gap-room.json", "simple_path", 64, None),
         ("gap-room.json", "path", 512, Some(1.10)),
         ("gap-room.json", "light", 512, Some(1.10)),
-        ("gap-room.json", "bdpt", 128, Some(1.05)),
+        ("gap-room.json", "bdpt", 128, None),
     ];
     let family = runs.iter().filter(|r| r.3.is_some()).count();
     let mut failures = Vec::new();
