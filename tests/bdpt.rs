@@ -699,10 +699,25 @@ fn strategy_images_sum_to_the_image() {
         eprintln!("without {k:?}: worst relative difference {w:.2e}");
         assert!(w > 1e-5, "dropping {k:?} went unnoticed ({w})");
     }
-    // Unweighted images: each strategy's own estimate; the strategies that
-    // can make every path of the Cornell box (s >= 1, t >= 2 reaches all
-    // surfaces) are of the same order as the image.
-    assert!(strategies.image(1, 2, false).unwrap().iter().any(|p| p[1] > 0.0));
+    // Unweighted images: each strategy's own, unbiased estimate of all the
+    // light of its path length. Direct light (s + t = 3: camera, surface,
+    // light) is made whole by next-event estimation (1, 2) and by light
+    // tracing (2, 1) alone, so each of their unweighted images has the mean
+    // of the three weighted direct-light images summed ((0, 3), (1, 2),
+    // (2, 1)); a weighted image in their place is short by the others'
+    // share.
+    let mean = |(st, tt): (u32, u32), weighted: bool| {
+        strategies.image(st, tt, weighted).map_or(0.0, |im| im.iter().map(|p| p[1] as f64).sum::<f64>())
+            / image.len() as f64
+    };
+    let direct: f64 = [(0, 3), (1, 2), (2, 1)].into_iter().map(|k| mean(k, true)).sum();
+    for k in [(1, 2), (2, 1)] {
+        let (unweighted, weighted) = (mean(k, false) / direct, mean(k, true) / direct);
+        eprintln!("{k:?}: unweighted / direct light {unweighted:.4}, weighted / direct light {weighted:.4}");
+        // (8 spp of 24 x 20 pixels: a few percent of noise.)
+        assert!((unweighted - 1.0).abs() < 0.12, "{k:?}'s unweighted image is {unweighted} of the direct light");
+        assert!(weighted < 0.97 && weighted > 0.03, "{k:?}: its weight no longer shares direct light: {weighted}");
+    }
 }
 
 #[test]
