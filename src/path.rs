@@ -555,18 +555,21 @@ pub fn point_lights_in_view(scene: &Scene) -> Vec<&str> {
         .collect()
 }
 
-/// A light path leaving the environment carries pi R^2 in its throughput
-/// (its origin is drawn on a disk of the scene's bounding radius R, pbrt-v4),
-/// which passes f32::MAX for R above ~1e19: such subpaths are dropped, and
-/// light tracing and BDPT miss what the environment's light paths would
-/// carry. The warning for a scene that large, if it has an environment.
+/// A light path leaving the environment carries 1 / pdf_pos = pi R^2 in its
+/// throughput (its origin is drawn on a disk of the scene's bounding radius
+/// R, pbrt-v4), which passes f32::MAX for R above ~1e19: `light_subpath`
+/// then drops the subpath (a zero pdf_pos, or a throughput that is not
+/// finite), and light tracing and BDPT miss what the environment's light
+/// paths carry. The warning for a scene that large, if it has an
+/// environment: the same densities (`Light::pdf_le`) and the same test as
+/// the walk, for the environment's brightest wavelength.
 pub fn environment_paths_overflow(scene: &Scene) -> Option<String> {
-    let (i, Light::Environment(e)) = scene.environment()? else {
+    let (i, light @ Light::Environment(e)) = scene.environment()? else {
         return None;
     };
-    let pi = std::f64::consts::PI;
-    let beta = e.le.max_value() as f64 * pi * (e.radius as f64).powi(2) * 4.0 * pi / scene.light_pmf(i) as f64;
-    (beta > f32::MAX as f64).then(|| {
+    let (pdf_pos, pdf_dir) = light.pdf_le(Vec3A::Z, Vec3A::Z);
+    let beta = e.le.max_value() / (scene.light_pmf(i) * pdf_dir) / pdf_pos;
+    (pdf_pos == 0.0 || !beta.is_finite()).then(|| {
         format!(
             "the scene's bounding radius {:e} is too large for light paths from the environment \"{}\" in f32 (their throughput carries pi R^2): light paths from it are lost; make the scene smaller",
             e.radius, scene.light_names[i as usize]
