@@ -7,10 +7,12 @@
 //!   the colour of radiance 1. An integrator that declares the object out of
 //!   its reach (`Integrator::unsamplable`: light tracing cannot see glass or
 //!   a mirror through the pinhole) is skipped there, and only there.
-//! - The same BSDFs on a sphere beside a diffuse albedo-1 sphere that fills
-//!   the view: the light the diffuse sphere receives through and off
-//!   them is still radiance 1, so this case is within every integrator's
-//!   reach, light tracing included (its caustic paths L S D E).
+//! - The same BSDFs on a large sphere over a diffuse albedo-1 floor that
+//!   fills the view, the sphere out of view: the light the floor receives
+//!   through and off it is still radiance 1, so this case is within every
+//!   integrator's reach, light tracing included (its caustic paths L S D E).
+//!   The sphere covers ~40 % of the floor's sky, so a lossy sphere is seen
+//!   (`a_lossy_mirror_over_the_floor_is_rejected`).
 //! - Rough BSDFs (GGX conductor and dielectric) on a single quad, seen from
 //!   two angles: each block reads the BSDF's radiance-mode directional
 //!   albedo at the block's viewing direction, integrated by quadrature
@@ -46,18 +48,30 @@ const CONTROL: f64 = 1.02;
 /// Light paths per pixel for light tracing, samples per pixel for the others:
 /// enough for each to reject the x1.02 control. A dispersive BSDF keeps one
 /// wavelength of four, and its colour noise needs 16x the samples where the
-/// camera sees it directly.
-fn spp(integrator: &str, dispersive: bool) -> u32 {
-    let base = match integrator {
-        "light" => 4096,
-        "bdpt" => 16,
+/// camera sees it directly, 4x over the floor (where ~40 % of the light has
+/// passed through it). Light tracing over the floor needs 2x: its paths
+/// start on a disk as wide as the scene, and the floor in view is ~6 % of it.
+fn spp(integrator: &str, dispersive: bool, view: View) -> u32 {
+    let base = match (integrator, view) {
+        ("light", View::OverFloor) => 8192,
+        ("light", _) => 4096,
+        ("bdpt", _) => 16,
         _ => 32,
     };
-    if dispersive {
-        16 * base
-    } else {
-        base
+    match (dispersive, view) {
+        (true, View::Direct) => 16 * base,
+        (true, View::OverFloor) => 4 * base,
+        _ => base,
     }
+}
+
+/// Where the camera sees the light of the object under test.
+#[derive(Clone, Copy, PartialEq, Debug)]
+enum View {
+    /// The object fills the view.
+    Direct,
+    /// Only its light, on a white floor.
+    OverFloor,
 }
 
 fn grey(v: f64) -> [f64; 3] {
@@ -83,17 +97,27 @@ fn sphere_in_view(bsdf: &Bsdf) -> Scene {
     b.build()
 }
 
-/// A diffuse albedo-1 sphere filling the view, with a sphere of `bsdf` in
-/// front of it, above the camera and out of its view (65 degrees off axis,
-/// 20 in radius; the image's half diagonal is 23). Close, so the scene's
-/// bounds, and light tracing's environment disk, stay small.
-fn sphere_beside(bsdf: &Bsdf) -> Scene {
-    let camera = Camera::new(Vec3A::new(0.0, 0.0, -2.2), Vec3A::ZERO, Vec3A::Y, 34.0, RES, RES);
+/// A diffuse albedo-1 floor filling the view, under a sphere of `bsdf`
+/// (radius 2, 3 above the floor) that hangs over the camera, out of its
+/// view: from the floor in view the sphere covers
+/// cosine-weighted sky (about 37 % at the corners of the view, 44 % at its
+/// centre), so that much of every block's light has passed through or off
+/// it, and a 10 % loss there moves every block by about 4 % (see
+/// `a_lossy_mirror_over_the_floor_is_rejected`). A wide field of view, so
+/// light tracing's environment paths land on the floor in view often.
+fn sphere_over_floor(bsdf: &Bsdf) -> Scene {
+    let camera = Camera::new(Vec3A::new(0.0, 0.8, 0.0), Vec3A::ZERO, Vec3A::Z, 90.0, RES, RES);
     let mut b = SceneBuilder::new(camera);
     let white = b.material("white", Bsdf::Diffuse(Diffuse::new(Spectrum::Constant(1.0))));
     let m = b.material("object", bsdf.clone());
-    b.mesh("white sphere", Mesh::sphere(Vec3A::ZERO, 1.0, 4, false), white, None);
-    b.mesh("neighbour", Mesh::sphere(Vec3A::new(0.0, 1.3, -1.6), 0.5, 3, false), m, None);
+    let corners = [
+        Vec3A::new(-2.0, 0.0, -2.0),
+        Vec3A::new(-2.0, 0.0, 2.0),
+        Vec3A::new(2.0, 0.0, 2.0),
+        Vec3A::new(2.0, 0.0, -2.0),
+    ];
+    b.mesh("white floor", Mesh::quad(corners), white, None);
+    b.mesh("sphere above", Mesh::sphere(Vec3A::new(0.0, 3.0, 0.0), 2.0, 3, false), m, None);
     b.environment("sky", Spectrum::Constant(1.0));
     b.build()
 }
@@ -134,9 +158,11 @@ fn lossless_objects_vanish_for_every_integrator() {
     let mut skipped = Vec::new();
     for (what, bsdf) in lossless() {
         type MakeScene = fn(&Bsdf) -> Scene;
-        let views: [(&str, MakeScene); 2] =
-            [("seen directly", sphere_in_view), ("beside a white sphere", sphere_beside)];
-        for (view, make) in views {
+        let views: [(&str, View, MakeScene); 2] = [
+            ("seen directly", View::Direct, sphere_in_view),
+            ("over a white floor", View::OverFloor, sphere_over_floor),
+        ];
+        for (view, kind, make) in views {
             for i in INTEGRATORS {
                 let scene = make(&bsdf);
                 let integ = integrators::create(i.name, &IntegratorOptions::default()).unwrap();
@@ -145,7 +171,7 @@ fn lossless_objects_vanish_for_every_integrator() {
                     continue;
                 }
                 let expected = vec![grey(1.0); blocks];
-                let spp = spp(i.name, what.contains("dispersive") && view == "seen directly");
+                let spp = spp(i.name, what.contains("dispersive"), kind);
                 cases.push(Case { what: format!("{what} {view}"), scene, integrator: i.name, spp, expected });
             }
         }
@@ -196,6 +222,29 @@ fn albedo_per_block(scene: &Scene, rough: &Rough) -> Vec<[f64; 3]> {
     out
 }
 
+/// The power of the "over a white floor" view for light reaching the camera
+/// by specular paths: a mirror of reflectance 0.9 (10 % lost per bounce)
+/// must fail the furnace for every integrator, at the spp of the lossless
+/// cases. A sphere seen only in a small part of the floor's sky would pass.
+#[test]
+fn a_lossy_mirror_over_the_floor_is_rejected() {
+    let blocks = ((RES / BLOCK) * (RES / BLOCK)) as usize;
+    let lossy = Bsdf::Mirror(Mirror::new(Spectrum::Constant(0.9)));
+    let mut passed = Vec::new();
+    for i in INTEGRATORS {
+        let integ = integrators::create(i.name, &IntegratorOptions::default()).unwrap();
+        let scene = sphere_over_floor(&lossy);
+        let passes = render_passes(&scene, integ.as_ref(), spp(i.name, false, View::OverFloor), K, seed(), 0);
+        let stats = ColourStats::from_passes(&passes, RES, RES, BLOCK);
+        let v = Verdict::versus_values(&stats, &vec![grey(1.0); blocks], INTEGRATORS.len());
+        eprintln!("lossy mirror over a white floor, {}: {v}", i.name);
+        if v.passed() {
+            passed.push(format!("{}: {v}", i.name));
+        }
+    }
+    assert!(passed.is_empty(), "a 10 % loss off the mirror went undetected:\n{}", passed.join("\n"));
+}
+
 #[test]
 fn rough_surfaces_show_their_directional_albedo() {
     let rough = [
@@ -228,7 +277,7 @@ fn rough_surfaces_show_their_directional_albedo() {
                 }
                 let what = format!("{} at {theta} degrees", r.name);
                 let (scene, expected) = (quad_seen_at(&r.bsdf, theta), expected.clone());
-                cases.push(Case { what, scene, integrator: i.name, spp: spp(i.name, false), expected });
+                cases.push(Case { what, scene, integrator: i.name, spp: spp(i.name, false, View::Direct), expected });
             }
         }
     }
