@@ -109,6 +109,10 @@ pub struct IntegratorInfo {
     pub name: &'static str,
     pub description: &'static str,
     pub create: fn(&IntegratorOptions) -> Box<dyn Integrator>,
+    /// Whether it reads `IntegratorOptions::mis`. The others ignore it, so
+    /// a render records the default for them: parts rendered with and
+    /// without `--mis` hold the same image and must merge.
+    pub reads_mis: bool,
 }
 
 pub const INTEGRATORS: &[IntegratorInfo] = &[
@@ -116,21 +120,25 @@ pub const INTEGRATORS: &[IntegratorInfo] = &[
         name: "simple_path",
         description: "path tracing with BSDF sampling only (no NEE, no MIS): the obviously correct baseline",
         create: |o| Box::new(simple_path::SimplePath::new(o)),
+        reads_mis: false,
     },
     IntegratorInfo {
         name: "path",
         description: "path tracing with next-event estimation and BSDF sampling combined by the power heuristic",
         create: |o| Box::new(path::PathTracer::new(o)),
+        reads_mis: false,
     },
     IntegratorInfo {
         name: "light",
         description: "light tracing (particle tracing): light paths connected to the pinhole and splatted",
         create: |o| Box::new(light::LightTracer::new(o)),
+        reads_mis: false,
     },
     IntegratorInfo {
         name: "bdpt",
         description: "bidirectional path tracing: every (s, t) connection strategy, combined by MIS (--mis)",
         create: |o| Box::new(bdpt::Bdpt::new(o)),
+        reads_mis: true,
     },
 ];
 
@@ -140,6 +148,22 @@ pub fn create(name: &str, opts: &IntegratorOptions) -> Result<Box<dyn Integrator
         let names: Vec<&str> = INTEGRATORS.iter().map(|i| i.name).collect();
         format!("unknown integrator \"{name}\" (valid: {})", names.join(", "))
     })
+}
+
+/// Whether the integrator called `name` reads `IntegratorOptions::mis`
+/// (false for unknown names).
+pub fn reads_mis(name: &str) -> bool {
+    INTEGRATORS.iter().any(|i| i.name == name && i.reads_mis)
+}
+
+/// The MIS heuristic a render of `name` uses: `mis` if it reads one, else
+/// the default, which is what its sidecar and state record.
+pub fn effective_mis(name: &str, mis: MisHeuristic) -> MisHeuristic {
+    if reads_mis(name) {
+        mis
+    } else {
+        MisHeuristic::default()
+    }
 }
 
 /// Russian roulette on throughput (pbrt-v4 PathIntegrator): after

@@ -43,8 +43,9 @@
 //! can compare MIS heuristics of the same estimator as separate lines;
 //! `--mis a,b` expands a bare `bdpt` into `bdpt:a`, `bdpt:b`.
 //!
-//! The reference is either an EXR (with the sidecar of `prism reference` if
-//! present) or rendered here (`--reference-spp`) with seeds disjoint from the
+//! The reference is either an EXR (with the sidecar of `prism reference`,
+//! or of the `prism render` or `prism merge` that made it, if present) or
+//! rendered here (`--reference-spp`) with seeds disjoint from the
 //! run's (`REFERENCE_SEED_OFFSET`): a reference sharing sample streams with
 //! the image it judges would correlate with it and flatter it.
 //!
@@ -66,9 +67,11 @@
 //! | --save-exr               | off            | also write each final image as `DIR/<label>.exr`    |
 
 use crate::camera::Camera;
-use crate::film::{check_outputs, read_exr, write_exr, write_json, DroppedSamples, Film};
-use crate::integrators::{self, IntegratorOptions, MisHeuristic};
-use crate::reference::{make_reference, read_reference, write_reference, ReferenceMeta};
+use crate::film::{
+    check_outputs, check_writable, ensure_exr, read_exr, write_atomically, write_exr, write_json, DroppedSamples, Film,
+};
+use crate::integrators::{self, IntegratorOptions, MisHeuristic, INTEGRATORS};
+use crate::reference::{make_reference, write_reference, ReferenceMeta};
 use crate::render::{render, RenderOptions};
 use crate::scene::{load_scene, Scene};
 use crate::stats::rel_mse;
@@ -86,10 +89,6 @@ use std::time::Duration;
 /// its passes (seeds offset .. offset + passes) never share sample streams
 /// with the run.
 pub const REFERENCE_SEED_OFFSET: u64 = 1 << 32;
-
-/// Integrators that read `IntegratorOptions::mis`; a heuristic suffix on
-/// any other would label a line with a setting it ignores.
-const MIS_AWARE: &[&str] = &["bdpt"];
 
 /// The font chart text is rasterised with (see assets/fonts/LICENSE-DejaVu.txt).
 const FONT: &[u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
@@ -121,7 +120,8 @@ pub struct ConvergeArgs {
     /// MIS heuristics for bare `bdpt` specs: several expand it into one line each.
     #[arg(long, value_delimiter = ',', default_value = "power")]
     pub mis: Vec<MisHeuristic>,
-    /// Reference EXR (its `prism reference` sidecar is used if present).
+    /// Reference EXR (its sidecar, from `prism reference`, `render` or
+    /// `merge`, is used if present).
     #[arg(long, conflicts_with = "reference_spp")]
     pub reference: Option<PathBuf>,
     /// Render the reference here with this many samples per pixel in total.
@@ -245,10 +245,13 @@ impl IntegratorSpec {
                 None => (item, None),
             };
             integrators::create(name, &IntegratorOptions::default()).map_err(anyhow::Error::msg)?;
-            let aware = MIS_AWARE.contains(&name);
+            // A heuristic suffix on an integrator that ignores it would
+            // label a line with a setting it does not use.
+            let aware = integrators::reads_mis(name);
             match heuristic {
                 Some(_) if !aware => {
-                    bail!("\"{item}\": only {} take a MIS heuristic", MIS_AWARE.join(", "))
+                    let names: Vec<&str> = INTEGRATORS.iter().filter(|i| i.reads_mis).map(|i| i.name).collect();
+                    bail!("\"{item}\": only {} take a MIS heuristic", names.join(", "))
                 }
                 Some(h) => specs.push(IntegratorSpec { label: item.to_string(), name: name.to_string(), mis: h }),
                 None if aware && (mis.len() > 1 || mis[0] != MisHeuristic::Power) => {
@@ -267,8 +270,14 @@ impl IntegratorSpec {
             }
         }
         ensure!(!specs.is_empty(), "no integrators given");
+        // The same estimator twice (`bdpt,bdpt:power`) would be ranked
+        // against itself.
         for (i, s) in specs.iter().enumerate() {
-            ensure!(!specs[..i].iter().any(|o| o.label == s.label), "integrator \"{}\" given twice", s.label);
+            match specs[..i].iter().find(|o| (&o.name, o.mis) == (&s.name, s.mis)) {
+                Some(o) if o.label == s.label => bail!("integrator \"{}\" given twice", s.label),
+                Some(o) => bail!("integrators \"{}\" and \"{}\" are the same estimator", o.label, s.label),
+                None => {}
+            }
         }
         Ok(specs)
     }
@@ -508,8 +517,13 @@ pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
         ensure!(t.is_finite() && t > 0.0, "--time must be a positive number of seconds");
     }
     ensure!(cfg.max_spp != Some(0), "--spp must be at least 1");
-    ensure!(cfg.exposure.is_none_or(f32::is_finite), "--exposure must be a finite number of stops");
-    if let ReferenceSource::Render { integrator, spp, passes, .. } = &cfg.reference {
+    // 2^exposure must be a normal f32: 0 or infinity would make black panels.
+    ensure!(
+        cfg.exposure.is_none_or(|e| 2f32.powf(e).is_normal()),
+        "--exposure must be a number of stops in [-126, 127]"
+    );
+    if let ReferenceSource::Render { integrator, spp, passes, out } = &cfg.reference {
+        ensure_exr("--reference-out", out)?;
         ensure!(*passes >= 2, "--reference-passes must be at least 2");
         ensure!(*spp >= 1, "--reference-spp must be at least 1");
         integrators::create(integrator, &IntegratorOptions::default()).map_err(anyhow::Error::msg)?;
@@ -529,7 +543,6 @@ pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
         .iter()
         .map(|s| integrators::create(&s.name, &IntegratorOptions { max_depth, mis: s.mis }).map_err(anyhow::Error::msg))
         .collect::<Result<Vec<_>>>()?;
-    std::fs::create_dir_all(&cfg.out).with_context(|| format!("cannot create {}", cfg.out.display()))?;
     let scene_name = cfg.scene.display().to_string();
     let mut notes = Vec::new();
 
@@ -539,6 +552,8 @@ pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
         "the reference has {} pixels but the run renders {w}x{h}: give --width/--height to match",
         reference.len()
     );
+    std::fs::create_dir_all(&cfg.out).with_context(|| format!("cannot create {}", cfg.out.display()))?;
+    check_converge_outputs(cfg)?;
 
     let mut results = Vec::new();
     let mut finals = Vec::new();
@@ -620,7 +635,8 @@ pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
     Ok(out)
 }
 
-/// Every file the run writes, by role, against its inputs (`check_outputs`):
+/// Every file the run writes, by role, against its inputs (`check_outputs`),
+/// and writable where its directory exists (`check_writable`):
 /// a reference rendered to `DIR/<label>.exr` would be replaced by
 /// `--save-exr`, and `--reference-out s.exr` would write its sidecar over a
 /// scene `s.json`.
@@ -647,6 +663,13 @@ fn check_converge_outputs(cfg: &ConvergeConfig) -> Result<()> {
             outputs.extend([("the reference", out.clone()), ("its sidecar", out.with_extension("json"))])
         }
     }
+    // (Run again once `DIR` exists: a directory left where an output goes
+    // must stop the run before it renders, not after.)
+    for (_, path) in &outputs {
+        if path.parent().is_none_or(|d| d.as_os_str().is_empty() || d.is_dir()) {
+            check_writable(path)?;
+        }
+    }
     let inputs: Vec<(&str, &Path)> = inputs.iter().map(|(r, p)| (*r, p.as_path())).collect();
     let outputs: Vec<(&str, &Path)> = outputs.iter().map(|(r, p)| (*r, p.as_path())).collect();
     check_outputs(&inputs, &outputs)
@@ -661,11 +684,11 @@ fn obtain_reference(
     notes: &mut Vec<String>,
 ) -> Result<(Vec<[f32; 3]>, ReferenceInfo)> {
     let (w, h) = (scene.camera.width, scene.camera.height);
-    let (image, meta, path, here) = match &cfg.reference {
+    let (image, origin, path, here) = match &cfg.reference {
         ReferenceSource::File(path) => {
             if path.with_extension("json").exists() {
-                let (image, meta) = read_reference(path)?;
-                (image, Some(meta), path.clone(), false)
+                let (image, origin) = read_any_reference(path)?;
+                (image, Some(origin), path.clone(), false)
             } else {
                 let (rw, rh, image) = read_exr(path)?;
                 ensure!((rw, rh) == (w, h), "{} is {rw}x{rh} but the run renders {w}x{h}", path.display());
@@ -702,10 +725,10 @@ fn obtain_reference(
                 out.display()
             );
             write_reference(out, &image, &meta)?;
-            (image, Some(meta), out.clone(), true)
+            (image, Some(Origin::of_reference(&meta)), out.clone(), true)
         }
     };
-    if let Some(m) = &meta {
+    if let Some(m) = &origin {
         if Path::new(&m.scene).file_name() != cfg.scene.file_name() {
             notes.push(format!("the reference was rendered from {}, this run renders {scene_name}", m.scene));
         }
@@ -725,7 +748,7 @@ fn obtain_reference(
             m.width,
             m.height
         );
-        let seeds = m.seed..m.seed.saturating_add(m.passes as u64);
+        let seeds = m.seed..m.seed.saturating_add(m.passes.unwrap_or(1) as u64);
         if seeds.contains(&seed) {
             notes.push(format!(
                 "the reference's passes used seeds {}..{} which include the run's seed {seed}: its samples are \
@@ -736,18 +759,95 @@ fn obtain_reference(
     } else {
         notes.push("the reference has no sidecar: its integrator, spp and noise are unknown".to_string());
     }
+    let noise_floor = origin.as_ref().and_then(|m| m.noise_floor);
     let info = ReferenceInfo {
         path: path.display().to_string(),
         rendered_here: here,
-        integrator: meta.as_ref().map(|m| m.integrator.clone()),
-        spp: meta.as_ref().map(|m| m.spp as u64 * m.passes as u64),
-        passes: meta.as_ref().map(|m| m.passes),
-        seed: meta.as_ref().map(|m| m.seed),
-        wall_seconds: meta.as_ref().map(|m| m.wall_seconds),
-        noise_floor: meta.as_ref().map(noise_floor),
-        noise_floor_method: meta.as_ref().map(|_| "block errors".to_string()),
+        integrator: origin.as_ref().map(|m| m.integrator.clone()),
+        spp: origin.as_ref().map(|m| m.spp),
+        passes: origin.as_ref().and_then(|m| m.passes),
+        seed: origin.as_ref().map(|m| m.seed),
+        wall_seconds: origin.as_ref().and_then(|m| m.wall_seconds),
+        noise_floor,
+        noise_floor_method: noise_floor.map(|_| "block errors".to_string()),
     };
     Ok((image, info))
+}
+
+/// Where a reference image came from, as its sidecar says: a `prism
+/// reference` sidecar, or the sidecar of a `prism render` or `prism merge`
+/// (docs/cluster.md makes long references that way), which has no block
+/// errors and so no noise estimate.
+struct Origin {
+    scene: String,
+    integrator: String,
+    seed: u64,
+    width: u32,
+    height: u32,
+    /// Total samples per pixel (over all passes).
+    spp: u64,
+    passes: Option<u32>,
+    wall_seconds: Option<f64>,
+    noise_floor: Option<f64>,
+}
+
+/// The fields of a render or merge sidecar that `Origin` needs (the rest
+/// is ignored).
+#[derive(Deserialize)]
+struct RenderSidecar {
+    scene: String,
+    integrator: String,
+    seed: u64,
+    width: u32,
+    height: u32,
+    spp: u64,
+    passes: Option<u32>,
+    wall_seconds: Option<f64>,
+}
+
+impl Origin {
+    fn of_reference(m: &ReferenceMeta) -> Self {
+        Origin {
+            scene: m.scene.clone(),
+            integrator: m.integrator.clone(),
+            seed: m.seed,
+            width: m.width,
+            height: m.height,
+            spp: m.spp as u64 * m.passes as u64,
+            passes: Some(m.passes),
+            wall_seconds: Some(m.wall_seconds),
+            noise_floor: Some(noise_floor(m)),
+        }
+    }
+
+    fn of_render(r: RenderSidecar) -> Self {
+        Origin {
+            scene: r.scene,
+            integrator: r.integrator,
+            seed: r.seed,
+            width: r.width,
+            height: r.height,
+            spp: r.spp * r.passes.unwrap_or(1) as u64,
+            passes: r.passes,
+            wall_seconds: r.wall_seconds,
+            noise_floor: None,
+        }
+    }
+}
+
+/// A reference EXR and its sidecar, of either kind (`Origin`).
+fn read_any_reference(exr: &Path) -> Result<(Vec<[f32; 3]>, Origin)> {
+    let json = exr.with_extension("json");
+    let text = std::fs::read_to_string(&json).with_context(|| format!("cannot read {}", json.display()))?;
+    let origin = match serde_json::from_str::<ReferenceMeta>(&text) {
+        Ok(m) => Origin::of_reference(&m),
+        Err(_) => serde_json::from_str::<RenderSidecar>(&text).map(Origin::of_render).with_context(|| {
+            format!("{}: neither a reference sidecar nor a render or merge sidecar", json.display())
+        })?,
+    };
+    let (w, h, image) = read_exr(exr)?;
+    ensure!((w, h) == (origin.width, origin.height), "{}: size {w}x{h} differs from its sidecar", exr.display());
+    Ok((image, origin))
 }
 
 /// The relMSE the reference's own noise adds to every measurement: the
@@ -912,15 +1012,13 @@ fn write_outputs(
     finals: &[Vec<[f32; 3]>],
 ) -> Result<()> {
     let dir = &cfg.out;
-    std::fs::write(dir.join("results.csv"), results_csv(r)).context("cannot write results.csv")?;
+    write_text(&dir.join("results.csv"), &results_csv(r))?;
     write_json(&dir.join("results.json"), r)?;
     let time_svg = chart_svg(r, Axis::Seconds)?;
     let spp_svg = chart_svg(r, Axis::Spp)?;
     for (name, svg) in [("error-vs-time", &time_svg), ("error-vs-spp", &spp_svg)] {
-        std::fs::write(dir.join(format!("{name}.svg")), svg).with_context(|| format!("cannot write {name}.svg"))?;
-        svg_to_png(svg, 1.0)?
-            .save(dir.join(format!("{name}.png")))
-            .with_context(|| format!("cannot write {name}.png"))?;
+        write_text(&dir.join(format!("{name}.svg")), svg)?;
+        write_png(&dir.join(format!("{name}.png")), &svg_to_png(svg, 1.0)?)?;
     }
     let scale = match cfg.exposure {
         Some(e) => 2f32.powf(e),
@@ -934,7 +1032,7 @@ fn write_outputs(
     for (res, img) in r.integrators.iter().zip(finals) {
         panels.push((format!("{} ({} spp)", res.label, res.spp), tonemap(img, r.width, r.height, scale)));
     }
-    compose(&panels, None)?.save(dir.join("images.png")).context("cannot write images.png")?;
+    write_png(&dir.join("images.png"), &compose(&panels, None)?)?;
     let maps: Vec<Vec<f64>> = finals.iter().map(|img| pixel_errors(img, reference)).collect();
     let (lo, hi) = error_range(&maps);
     let panels: Vec<(String, RgbImage)> = r
@@ -945,9 +1043,17 @@ fn write_outputs(
             (format!("{}: relMSE {:.2e}", res.label, res.rel_mse), false_colour(m, r.width, r.height, lo, hi))
         })
         .collect();
-    compose(&panels, Some((lo, hi)))?.save(dir.join("errors.png")).context("cannot write errors.png")?;
-    std::fs::write(dir.join("report.md"), report_md(r)).context("cannot write report.md")?;
-    Ok(())
+    write_png(&dir.join("errors.png"), &compose(&panels, Some((lo, hi)))?)?;
+    write_text(&dir.join("report.md"), &report_md(r))
+}
+
+/// Each output appears whole or not at all (`write_atomically`).
+fn write_text(path: &Path, text: &str) -> Result<()> {
+    write_atomically(path, |tmp| std::fs::write(tmp, text).with_context(|| format!("cannot write {}", path.display())))
+}
+
+fn write_png(path: &Path, image: &RgbImage) -> Result<()> {
+    write_atomically(path, |tmp| image.save(tmp).with_context(|| format!("cannot write {}", path.display())))
 }
 
 /// One row per checkpoint: `integrator,spp,seconds,cpu_seconds,rel_mse,mse,mae,by_spp`
@@ -1021,8 +1127,14 @@ fn report_md(r: &ConvergeResults) -> String {
     );
     let rf = &r.reference;
     let _ = write!(s, "- reference: `{}`", rf.path);
-    if let (Some(i), Some(spp), Some(p)) = (&rf.integrator, rf.spp, rf.passes) {
-        let _ = write!(s, ", {i}, {spp} spp in {p} passes (seeds from {})", rf.seed.unwrap_or(0));
+    match (&rf.integrator, rf.spp, rf.passes) {
+        (Some(i), Some(spp), Some(p)) => {
+            let _ = write!(s, ", {i}, {spp} spp in {p} passes (seeds from {})", rf.seed.unwrap_or(0));
+        }
+        (Some(i), Some(spp), None) => {
+            let _ = write!(s, ", {i}, {spp} spp (seed {})", rf.seed.unwrap_or(0));
+        }
+        _ => {}
     }
     if let Some(t) = rf.wall_seconds {
         let _ = write!(s, ", {t:.1} s{}", if rf.rendered_here { ", rendered by this run" } else { "" });

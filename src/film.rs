@@ -156,6 +156,30 @@ impl Film {
     }
 }
 
+/// Fails early (before any rendering) if `path` cannot be written.
+pub fn check_writable(path: &Path) -> Result<()> {
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    if !dir.is_dir() {
+        bail!("cannot write {}: directory {} does not exist", path.display(), dir.display());
+    }
+    let probe = dir.join(format!(".prism-write-probe-{}", std::process::id()));
+    std::fs::write(&probe, b"")
+        .with_context(|| format!("cannot write {}: directory is not writable", path.display()))?;
+    let _ = std::fs::remove_file(probe);
+    if path.is_dir() {
+        bail!("cannot write {}: it is a directory", path.display());
+    }
+    Ok(())
+}
+
+/// Fails unless `path` names an .exr file: `flag` is the option that gave it.
+pub fn ensure_exr(flag: &str, path: &Path) -> Result<()> {
+    if path.extension().and_then(|e| e.to_str()) != Some("exr") {
+        bail!("{flag} must name an .exr file, got {}", path.display());
+    }
+    Ok(())
+}
+
 /// Refuses outputs that would replace an input or one another: `prism render
 /// s.json --out s.exr` would write its sidecar, s.json, over the scene.
 /// Files are named by their role ("the scene", "--png") and compared after

@@ -3,7 +3,7 @@
 use anyhow::{anyhow, bail, ensure, Context, Result};
 use clap::{Parser, Subcommand};
 use prism::camera::Camera;
-use prism::film::{self, check_outputs, DroppedSamples, Film};
+use prism::film::{self, check_outputs, check_writable, ensure_exr, DroppedSamples, Film};
 use prism::integrators::{self, Integrator, IntegratorOptions, MisHeuristic, INTEGRATORS};
 use prism::render::{
     check_threads, render_chunked, render_with_strategies, RenderOptions, RenderStats, StrategyImages,
@@ -248,8 +248,12 @@ fn reference_command(a: ReferenceArgs) -> Result<()> {
     let mut builder = load_scene(&a.scene)?;
     builder.set_resolution(a.width, a.height);
     let integrator = integrators::create(&a.integrator, &IntegratorOptions::default()).map_err(anyhow::Error::msg)?;
-    check_writable(&a.out)?;
-    check_outputs(&[("the scene", &a.scene)], &[("--out", &a.out), ("its sidecar", &a.out.with_extension("json"))])?;
+    ensure_exr("--out", &a.out)?;
+    let sidecar = a.out.with_extension("json");
+    for path in [&a.out, &sidecar] {
+        check_writable(path)?;
+    }
+    check_outputs(&[("the scene", &a.scene)], &[("--out", &a.out), ("its sidecar", &sidecar)])?;
     let scene = builder.build();
     let name = a.scene.display().to_string();
     let (image, meta) = prism::reference::make_reference(
@@ -288,22 +292,6 @@ fn rgb_table(res: usize, out: &Path) -> Result<()> {
     table.write(out).with_context(|| format!("cannot write {}", out.display()))
 }
 
-/// Fails early (before any rendering) if `path` cannot be written.
-fn check_writable(path: &Path) -> Result<()> {
-    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    if !dir.is_dir() {
-        bail!("cannot write {}: directory {} does not exist", path.display(), dir.display());
-    }
-    let probe = dir.join(format!(".prism-write-probe-{}", std::process::id()));
-    std::fs::write(&probe, b"")
-        .with_context(|| format!("cannot write {}: directory is not writable", path.display()))?;
-    let _ = std::fs::remove_file(probe);
-    if path.is_dir() {
-        bail!("cannot write {}: it is a directory", path.display());
-    }
-    Ok(())
-}
-
 /// What every kind of render shares: the scene, its estimator, the options
 /// and what identifies the render (for checkpoints, parts and sidecars).
 struct Setup {
@@ -326,20 +314,20 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
     if a.passes.is_some_and(|k| k < 2) {
         bail!("--passes must be at least 2 (a variance needs two passes)");
     }
-    if a.checkpoint_every.is_some_and(|s| !(s >= 0.0 && s.is_finite())) {
-        bail!("--checkpoint-every must be a number of seconds >= 0");
+    if a.checkpoint_every.is_some_and(|s| Duration::try_from_secs_f64(s).is_err()) {
+        bail!("--checkpoint-every must be a number of seconds >= 0 (below 2^64)");
+    }
+    // 2^exposure must be a normal f32: 0 or infinity would write a black PNG.
+    if !2f32.powf(a.exposure).is_normal() {
+        bail!("--exposure must be a number of stops in [-126, 127], got {}", a.exposure);
     }
     check_threads(a.threads)?;
     let seed = a.seed.or(defaults.seed).unwrap_or(0);
     let max_depth = a.max_depth.or(defaults.max_depth).unwrap_or(IntegratorOptions::default().max_depth);
     let integrator =
         integrators::create(&name, &IntegratorOptions { max_depth, mis: a.mis }).map_err(anyhow::Error::msg)?;
-    if let Some(dir) = &a.strategies {
-        if name != "bdpt" {
-            bail!("--strategies needs --integrator bdpt (got {name})");
-        }
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-        check_writable(&dir.join("s0_t2_weighted.exr"))?;
+    if a.strategies.is_some() && name != "bdpt" {
+        bail!("--strategies needs --integrator bdpt (got {name})");
     }
     if a.width.is_some() || a.height.is_some() {
         let (w, h) = (a.width.unwrap_or(0), a.height.unwrap_or(0));
@@ -349,17 +337,35 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
         Camera::check_resolution(w, h).map_err(|e| anyhow!("--width, --height: {e}"))?;
         builder.set_resolution(w, h);
     }
-    if a.out.extension().and_then(|e| e.to_str()) != Some("exr") {
-        bail!("--out must name an .exr file, got {}", a.out.display());
-    }
-    check_writable(&a.out)?;
-    if let Some(png) = &a.png {
-        check_writable(png)?;
-    }
+    ensure_exr("--out", &a.out)?;
     let outputs = render_outputs(a);
-    check_outputs(&[("the scene", &a.scene)], &outputs.iter().map(|(r, p)| (*r, p.as_path())).collect::<Vec<_>>())?;
+    for (_, path) in &outputs {
+        check_writable(path)?;
+    }
+    let state = a.out.with_extension("state");
+    if !writes_state(a) && state.exists() {
+        bail!(
+            "{} holds an earlier part's samples, and this render (no --sample-range, not resumed from a .state) \
+             would leave it stale beside the new {} for `prism merge`: remove it or choose another --out",
+            state.display(),
+            a.out.display()
+        );
+    }
+    let outputs: Vec<(&str, &Path)> = outputs.iter().map(|(r, p)| (*r, p.as_path())).collect();
+    check_outputs(&[("the scene", &a.scene)], &outputs)?;
+    if let Some(resume) = &a.resume {
+        // It may be replaced only by its own successor, once it is read:
+        // the checkpoint or the state file.
+        let others: Vec<_> = outputs.iter().copied().filter(|(r, _)| !RESUMABLE.contains(r)).collect();
+        check_outputs(&[("the checkpoint (--resume)", resume)], &others)?;
+    }
+    if let Some(dir) = &a.strategies {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        check_writable(&dir.join("s0_t2_weighted.exr"))?;
+    }
     let scene_bytes = std::fs::read(&a.scene).with_context(|| format!("cannot read {}", a.scene.display()))?;
     let scene = builder.build();
+    let mis = integrators::effective_mis(&name, a.mis);
     let identity = Identity {
         scene: a.scene.display().to_string(),
         scene_hash: format!("{:016x}", fnv1a(&scene_bytes)),
@@ -368,7 +374,7 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
         width: scene.camera.width,
         height: scene.camera.height,
         max_depth,
-        mis: a.mis.name().to_string(),
+        mis: mis.name().to_string(),
     };
     let opts = RenderOptions { seed, threads: a.threads, progress: !a.quiet };
     Ok(Setup { scene, integrator, identity, spp, opts })
@@ -382,13 +388,23 @@ fn render_outputs(a: &RenderArgs) -> Vec<(&'static str, PathBuf)> {
     if a.passes.is_some() {
         outs.push(("its variance image", a.out.with_extension("var.exr")));
     }
-    if a.sample_range.is_some() {
+    if writes_state(a) {
         outs.push(("its state file", a.out.with_extension("state")));
     }
     if a.checkpoint_every.is_some() {
         outs.push(("its checkpoint", a.out.with_extension("ckpt")));
     }
     outs
+}
+
+/// The outputs of `render_outputs` that a render may resume from.
+const RESUMABLE: [&str; 2] = ["its state file", "its checkpoint"];
+
+/// Whether the render writes OUT.state, the sums `prism merge` reads: a
+/// part (--sample-range), or a part grown from its .state (--resume), whose
+/// old state would otherwise be left behind holding fewer samples.
+fn writes_state(a: &RenderArgs) -> bool {
+    a.sample_range.is_some() || a.resume.as_ref().is_some_and(|r| r.extension().is_some_and(|e| e == "state"))
 }
 
 fn render_command(a: RenderArgs) -> Result<()> {
@@ -454,7 +470,7 @@ fn render_samples(a: &RenderArgs, s: &Setup) -> Result<(Vec<[f32; 3]>, Sidecar, 
         Ok(())
     })?;
     let mut sidecar = Sidecar::new(s.identity.clone(), film.spp, std::slice::from_ref(&range), film.dropped);
-    if a.sample_range.is_some() {
+    if writes_state(a) {
         let path = a.out.with_extension("state");
         RenderState::save(&path, &s.identity, std::slice::from_ref(&range), &film)?;
         sidecar.state = Some(file_name(&path));
@@ -503,12 +519,12 @@ fn render_strategies(s: &Setup, dir: &Path) -> Result<(Vec<[f32; 3]>, Sidecar, R
 }
 
 fn merge_command(out: &Path, parts: &[PathBuf]) -> Result<()> {
-    if out.extension().and_then(|e| e.to_str()) != Some("exr") {
-        bail!("the merge output must name an .exr file, got {}", out.display());
-    }
-    check_writable(out)?;
+    ensure_exr("the merge output", out)?;
     let inputs: Vec<PathBuf> = parts.iter().map(|p| p.with_extension("state")).collect();
     let (state, sidecar) = (out.with_extension("state"), out.with_extension("json"));
+    for path in [out, &state, &sidecar] {
+        check_writable(path)?;
+    }
     check_outputs(
         &inputs.iter().map(|p| ("the part state", p.as_path())).collect::<Vec<_>>(),
         &[("the merged image", out), ("its sidecar", &sidecar), ("its state file", &state)],

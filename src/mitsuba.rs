@@ -40,6 +40,7 @@
 //! | --height | the scene's  | image height (`$height`)                 |
 //! | --spp    | 64           | samples per pixel (`$spp`)               |
 
+use crate::film::write_atomically;
 use crate::light::Light;
 use crate::materials::Bsdf;
 use crate::scene::{load_scene, Scene};
@@ -179,7 +180,9 @@ pub fn export(scene: &Scene, dir: &Path, spp: u32) -> Result<usize> {
     }
     let _ = writeln!(xml, "</scene>");
     let path = dir.join("scene.xml");
-    std::fs::write(&path, xml).with_context(|| format!("cannot write {}", path.display()))?;
+    write_atomically(&path, |tmp| {
+        std::fs::write(tmp, xml).with_context(|| format!("cannot write {}", path.display()))
+    })?;
     Ok(groups.len())
 }
 
@@ -221,7 +224,7 @@ fn write_ply(path: &Path, positions: &[Vec3A], normals: &[Vec3A]) -> Result<()> 
             bytes.extend((3 * t + j).to_le_bytes());
         }
     }
-    std::fs::write(path, bytes).with_context(|| format!("cannot write {}", path.display()))
+    write_atomically(path, |tmp| std::fs::write(tmp, bytes).with_context(|| format!("cannot write {}", path.display())))
 }
 
 #[cfg(test)]

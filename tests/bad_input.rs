@@ -292,6 +292,54 @@ const CASES: &[Case] = &[
         words: &["--width, --height: 4294967295 x 4294967295", "pixels is more than the 134217728"],
     },
     Case {
+        id: "checkpoint-every-too-large",
+        edits: &[],
+        args: &["--checkpoint-every", "1e30"],
+        out: "out.exr",
+        position: "",
+        words: &["--checkpoint-every must be a number of seconds >= 0 (below 2^64)"],
+    },
+    Case {
+        id: "exposure-not-finite",
+        edits: &[],
+        args: &["--exposure=nan", "--png", "{dir}/preview.png"],
+        out: "out.exr",
+        position: "",
+        words: &["--exposure must be a number of stops in [-126, 127], got NaN"],
+    },
+    Case {
+        id: "exposure-overflow",
+        edits: &[],
+        args: &["--exposure", "130", "--png", "{dir}/preview.png"],
+        out: "out.exr",
+        position: "",
+        words: &["--exposure must be a number of stops in [-126, 127], got 130"],
+    },
+    Case {
+        id: "sidecar-is-a-directory",
+        edits: &[],
+        args: &[],
+        out: "taken-sidecar.exr",
+        position: "",
+        words: &["taken-sidecar.json: it is a directory"],
+    },
+    Case {
+        id: "stale-part-state",
+        edits: &[],
+        args: &[],
+        out: "part.exr",
+        position: "",
+        words: &["part.state holds an earlier part's samples", "would leave it stale"],
+    },
+    Case {
+        id: "output-replaces-checkpoint",
+        edits: &[],
+        args: &["--resume", "{dir}/part.state", "--png", "{dir}/part.state"],
+        out: "out.exr",
+        position: "",
+        words: &["--png", "would replace the checkpoint (--resume)"],
+    },
+    Case {
         id: "too-many-threads",
         edits: &[],
         args: &["--threads", "100000"],
@@ -325,10 +373,13 @@ fn run(case: &Case) -> Result<(), String> {
     }
     std::fs::write(dir.join("s.json"), &text).unwrap();
     std::fs::create_dir_all(dir.join("taken.exr")).unwrap();
+    std::fs::create_dir_all(dir.join("taken-sidecar.json")).unwrap();
+    // An earlier part's state (its contents are never read by these cases).
+    std::fs::write(dir.join("part.state"), PREVIOUS).unwrap();
     let out = if Path::new(case.out).is_absolute() { PathBuf::from(case.out) } else { dir.join(case.out) };
     // An existing output and sidecar, which a failure must not touch.
     let sidecar = out.with_extension("json");
-    let keep = out.parent().is_some_and(|p| p == dir) && case.out != "taken.exr";
+    let keep = out.parent().is_some_and(|p| p == dir) && !case.out.starts_with("taken");
     if keep {
         std::fs::write(&out, PREVIOUS).unwrap();
         std::fs::write(&sidecar, PREVIOUS).unwrap();
@@ -338,7 +389,7 @@ fn run(case: &Case) -> Result<(), String> {
         .arg(dir.join("s.json"))
         .arg("--out")
         .arg(&out)
-        .args(case.args)
+        .args(case.args.iter().map(|a| a.replace("{dir}", &dir.display().to_string())))
         .arg("--quiet")
         .output()
         .unwrap();
@@ -368,6 +419,12 @@ fn run(case: &Case) -> Result<(), String> {
         }
     } else if case.out != "taken.exr" && out.exists() {
         problems.push("an output file was written".to_string());
+    }
+    if std::fs::read(dir.join("part.state")).ok().as_deref() != Some(PREVIOUS) {
+        problems.push("the earlier part's state changed".to_string());
+    }
+    if dir.join("preview.png").exists() {
+        problems.push("a PNG was written".to_string());
     }
     let leftovers: Vec<String> = std::fs::read_dir(&dir)
         .unwrap()

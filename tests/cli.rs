@@ -193,3 +193,30 @@ fn outputs_never_replace_the_scene_or_each_other() {
     assert_eq!(std::fs::read(d.join("p1.state")).unwrap(), state, "the part's state changed");
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// A part grown from its own state (`--resume p.state` with a larger
+/// `--spp`) writes its state again, so `merge` sees every sample the grown
+/// part's image holds (it used to keep the old state: 4 of 16 samples);
+/// and `--mis`, which path ignores, does not stop its parts from merging.
+#[test]
+fn grown_parts_and_ignored_options_merge() {
+    let d = temp_dir("grow");
+    let scene = write(&d, "s.json", scenes::TINY_SCENE);
+    let path = |name: &str| d.join(name).display().to_string();
+    let render = |extra: &[&str]| {
+        let mut args = vec!["render", scene.as_str(), "--threads", "1", "--quiet"];
+        args.extend_from_slice(extra);
+        let o = prism(&args);
+        assert!(o.status.success(), "{extra:?}: {}", stderr(&o));
+    };
+    render(&["--sample-range", "0..1", "--out", &path("p0.exr")]);
+    render(&["--spp", "3", "--resume", &path("p0.state"), "--out", &path("p0.exr")]);
+    render(&["--sample-range", "3..5", "--mis", "balance", "--out", &path("p1.exr")]);
+    let o = prism(&["merge", &path("all.exr"), &path("p0.exr"), &path("p1.exr")]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("5 spp (samples [0..5])"), "{}", stderr(&o));
+    // The merge is the single render of samples 0..5, bit for bit.
+    render(&["--spp", "5", "--out", &path("one.exr")]);
+    assert_eq!(std::fs::read(d.join("all.exr")).unwrap(), std::fs::read(d.join("one.exr")).unwrap());
+    let _ = std::fs::remove_dir_all(&d);
+}

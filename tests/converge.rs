@@ -306,6 +306,82 @@ fn bad_arguments_fail_clearly() {
     std::fs::remove_dir_all(&d).unwrap();
 }
 
+/// More arguments refused before anything is rendered or created: the same
+/// estimator twice under two labels, a reference written under a non-EXR
+/// name, an exposure whose 2^stops overflows, a reference of another size
+/// (no empty output directory left), and a directory where an output goes
+/// (refused before rendering, not after with half the outputs written).
+#[test]
+fn more_bad_arguments_fail_before_rendering() {
+    let d = temp_dir("args2");
+    let out = d.join("o");
+    let o = out.to_str().unwrap();
+    let exact = white_room_reference(&d, 8);
+    let exact = exact.to_str().unwrap();
+    let run = |extra: &[&str]| {
+        let mut args = vec!["converge", "scenes/white-room.json", "--spp", "2", "--height", "8"];
+        args.extend_from_slice(extra);
+        if !extra.contains(&"--width") {
+            args.extend(["--width", "8"]);
+        }
+        prism(&args)
+    };
+    let cases: [(&[&str], &str); 4] = [
+        (&["--integrators", "bdpt,bdpt:power", "--reference", exact, "--out", o], "are the same estimator"),
+        (&["--reference-spp", "2", "--reference-out", "r.png", "--out", o], "--reference-out must name an .exr"),
+        (&["--reference", exact, "--exposure", "130", "--out", o], "--exposure must be a number of stops"),
+        (&["--reference", exact, "--width", "16", "--out", o], "but the run renders 16x8"),
+    ];
+    for (args, message) in cases {
+        let r = run(args);
+        let e = String::from_utf8_lossy(&r.stderr);
+        assert!(!r.status.success() && e.contains(message), "{args:?}: {e}");
+        assert!(!out.exists(), "{args:?}: left {} behind", out.display());
+    }
+    std::fs::create_dir_all(out.join("report.md")).unwrap();
+    let r = run(&["--integrators", "path", "--reference", exact, "--out", o]);
+    let e = String::from_utf8_lossy(&r.stderr);
+    assert!(!r.status.success() && e.contains("report.md: it is a directory"), "{e}");
+    assert!(!out.join("results.csv").exists(), "outputs were written before the error");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// docs/cluster.md makes long references with `prism render` (and parts
+/// merged by `prism merge`): their sidecars are not `prism reference`'s,
+/// and converge takes them, with their integrator and spp, and no noise
+/// estimate from block errors.
+#[test]
+fn a_rendered_reference_is_accepted() {
+    let d = temp_dir("rendered-ref");
+    let reference = d.join("ref.exr");
+    let r = prism(&[
+        "render",
+        "scenes/white-room.json",
+        "--integrator",
+        "bdpt",
+        "--spp",
+        "4",
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--seed",
+        "99",
+        "--quiet",
+        "--out",
+        reference.to_str().unwrap(),
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let mut cfg = config("white-room.json", "path", ReferenceSource::File(reference), &d.join("o"), 8);
+    cfg.max_spp = Some(2);
+    let r = run(&cfg).unwrap();
+    assert_eq!(r.reference.integrator.as_deref(), Some("bdpt"));
+    assert_eq!((r.reference.spp, r.reference.seed, r.reference.passes), (Some(4), Some(99), None));
+    let report = std::fs::read_to_string(d.join("o/report.md")).unwrap();
+    assert!(report.contains("bdpt, 4 spp (seed 99)"), "{report}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
 /// A run shorter than the clock can measure (CPU seconds tick every 10 ms)
 /// has no efficiency and no rank, and says so; a reference whose own noise
 /// is a large part of the measured error is named in a note.
