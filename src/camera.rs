@@ -12,7 +12,7 @@
 //! the total number of light paths.
 
 use crate::geometry::Ray;
-use glam::{Vec2, Vec3A};
+use glam::{DVec3, Vec2, Vec3A};
 
 /// The largest image prism renders, in pixels (`Camera::check_resolution`).
 pub const MAX_PIXELS: u64 = 1 << 27;
@@ -50,13 +50,25 @@ impl Camera {
     /// `fov_y_deg` is the full vertical field of view. Looking along
     /// `look_at - position`, screen right is forward x up, so in a left-handed
     /// scene convention (the Cornell box data) +x appears on the left.
+    /// `look_at` and `up` must give a `frame` (loaders check first); the
+    /// camera of one that does not has a NaN basis.
     pub fn new(position: Vec3A, look_at: Vec3A, up: Vec3A, fov_y_deg: f32, width: u32, height: u32) -> Self {
-        let forward = (look_at - position).normalize();
-        let right = forward.cross(up).normalize();
-        let up = right.cross(forward);
+        let [forward, right, up] =
+            Self::frame(look_at.as_dvec3() - position.as_dvec3(), up.as_dvec3()).unwrap_or([Vec3A::NAN; 3]);
         let half_h = (fov_y_deg.to_radians() * 0.5).tan();
         let half_w = half_h * width as f32 / height as f32;
         Self { position, forward, right, up, width, height, half_w, half_h }
+    }
+
+    /// The orthonormal (forward, right, up) of a view direction and an up
+    /// vector, or None if either is zero or they are parallel. In f64, so a
+    /// camera ~1e19 or more from what it looks at (whose squared distance
+    /// overflows f32) still has a direction.
+    pub fn frame(forward: DVec3, up: DVec3) -> Option<[Vec3A; 3]> {
+        let forward = forward.normalize_or_zero();
+        let right = forward.cross(up.normalize_or_zero()).normalize_or_zero();
+        (forward != DVec3::ZERO && right != DVec3::ZERO)
+            .then(|| [forward, right, right.cross(forward)].map(|v| v.as_vec3a()))
     }
 
     /// Whether a film of `width` x `height` fits: at least one pixel, and at
@@ -173,6 +185,18 @@ mod tests {
 
     fn cam() -> Camera {
         Camera::new(Vec3A::ZERO, Vec3A::Z, Vec3A::Y, 60.0, 64, 48)
+    }
+
+    /// A camera 2e19 from what it looks at (the squared distance passes
+    /// f32: the f32 frame was zero, and the loader called it degenerate)
+    /// sees along +z all the same; a zero or parallel up has no frame.
+    #[test]
+    fn far_cameras_have_a_frame() {
+        let far = Camera::new(Vec3A::new(0.0, 0.0, -2e19), Vec3A::ZERO, Vec3A::Y, 40.0, 8, 8);
+        assert_eq!((far.forward, far.right, far.up), (Vec3A::Z, -Vec3A::X, Vec3A::Y));
+        assert!(Camera::frame(DVec3::Z, DVec3::ZERO).is_none());
+        assert!(Camera::frame(DVec3::ZERO, DVec3::Y).is_none());
+        assert!(Camera::frame(DVec3::Y * 3.0, DVec3::Y).is_none());
     }
 
     #[test]

@@ -114,9 +114,9 @@ impl Light {
     pub fn power(&self) -> f64 {
         let pi = std::f64::consts::PI;
         match self {
-            Light::Area(a) => pi * a.area as f64 * a.le.luminance() as f64 * if a.two_sided { 2.0 } else { 1.0 },
-            Light::Point(p) => 4.0 * pi * p.intensity.luminance() as f64,
-            Light::Environment(e) => 4.0 * pi * pi * (e.radius as f64).powi(2) * e.le.luminance() as f64,
+            Light::Area(a) => pi * a.area as f64 * a.le.luminance() * if a.two_sided { 2.0 } else { 1.0 },
+            Light::Point(p) => 4.0 * pi * p.intensity.luminance(),
+            Light::Environment(e) => 4.0 * pi * pi * (e.radius as f64).powi(2) * e.le.luminance(),
         }
     }
 

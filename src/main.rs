@@ -535,8 +535,9 @@ fn merge_command(out: &Path, parts: &[PathBuf]) -> Result<()> {
         .collect::<Result<Vec<_>>>()?;
     let merged = RenderState::merge(states)?;
     let (id, film) = (&merged.identity, &merged.film);
-    RenderState::save(&state, id, &merged.sample_ranges, film)?;
+    // The image first: its writer is the one with more ways to fail.
     film::write_exr(out, id.width, id.height, &film.image())?;
+    RenderState::save(&state, id, &merged.sample_ranges, film)?;
     let mut meta = Sidecar::new(id.clone(), film.spp, &merged.sample_ranges, film.dropped);
     meta.state = Some(file_name(&state));
     film::write_json(&sidecar, &meta)?;

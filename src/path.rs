@@ -567,12 +567,16 @@ pub fn environment_paths_overflow(scene: &Scene) -> Option<String> {
     let (i, light @ Light::Environment(e)) = scene.environment()? else {
         return None;
     };
+    // A black environment starts no light paths (its pmf is 0).
+    if e.le.max_value() <= 0.0 {
+        return None;
+    }
     let (pdf_pos, pdf_dir) = light.pdf_le(Vec3A::Z, Vec3A::Z);
     let beta = e.le.max_value() / (scene.light_pmf(i) * pdf_dir) / pdf_pos;
     (pdf_pos == 0.0 || !beta.is_finite()).then(|| {
         format!(
-            "the scene's bounding radius {:e} is too large for light paths from the environment \"{}\" in f32 (their throughput carries pi R^2): light paths from it are lost; make the scene smaller",
-            e.radius, scene.light_names[i as usize]
+            "light paths from the environment \"{}\" carry its radiance times pi R^2 (R = {:e}, the scene's bounding radius), which passes the f32 range: light paths from it are lost; make the scene smaller or the environment dimmer",
+            scene.light_names[i as usize], e.radius
         )
     })
 }

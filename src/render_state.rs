@@ -156,6 +156,9 @@ impl RenderState {
         let json = body.get(16..16 + n).context("header length beyond the end of the file")?;
         let header: Header = serde_json::from_slice(json).context("header")?;
         let (w, h) = (header.identity.width, header.identity.height);
+        // prism never writes an empty or oversized film; an image of one
+        // could not be written (or read back).
+        crate::camera::Camera::check_resolution(w, h).map_err(|e| anyhow::anyhow!("film size: {e}"))?;
         let data = &body[16 + n..];
         ensure!(
             data.len() == w as usize * h as usize * 48,
@@ -246,6 +249,13 @@ mod tests {
         let mut future = bytes.clone();
         future[8] = 9;
         assert!(err(&future).contains("version 9"));
+        // A well-formed state of an empty film (which prism never writes).
+        let mut empty = state(1, 0..1);
+        empty.identity.width = 0;
+        empty.film = Film::new(0, 1);
+        RenderState::save(&path, &empty.identity, &empty.sample_ranges, &empty.film).unwrap();
+        let e = RenderState::load(&path).err().map(|e| format!("{e:#}")).unwrap_or_default();
+        assert!(e.contains("film size: width and height must be at least 1"), "{e}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

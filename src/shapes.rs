@@ -145,6 +145,14 @@ impl Mesh {
         }
     }
 
+    /// The first triangle whose normal cannot be computed in f32: the
+    /// squared length of the cross product of its edges (what its normal
+    /// and area, and `accel::is_degenerate`, take) overflows, for edges
+    /// beyond ~4e9. Such a triangle would drop out of the BVH unseen.
+    pub fn oversized_triangle(&self) -> Option<usize> {
+        self.triangles().position(|v| !(v[1] - v[0]).cross(v[2] - v[0]).length_squared().is_finite())
+    }
+
     pub fn triangles(&self) -> impl Iterator<Item = [Vec3A; 3]> + '_ {
         self.indices.iter().map(|t| t.map(|i| self.positions[i as usize]))
     }

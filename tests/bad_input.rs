@@ -151,6 +151,46 @@ const CASES: &[Case] = &[
         words: &["objects[0].shape.file: cannot read mesh", "not a regular file"],
     },
     Case {
+        id: "obj-partial-normals",
+        edits: &[(
+            "{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1}",
+            "{\"type\": \"obj\", \"file\": \"mixed.obj\"}",
+        )],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:4:",
+        words: &["objects[0].shape.file:", "mixed.obj: object \"unnamed_object\" has normals on only some faces"],
+    },
+    Case {
+        id: "triangle-too-large",
+        edits: &[("\"material\": \"white\"}", "\"material\": \"white\", \"transform\": {\"scale\": 1e12}}")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:4:",
+        words: &["objects[0].transform: triangle ", " is too large for f32 arithmetic"],
+    },
+    Case {
+        id: "duplicate-spectrum-key",
+        edits: &[("\"radiance\": 1.0", "\"radiance\": {\"rgb\": [1, 1, 1], \"rgb\": [0, 0, 0]}")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:5:",
+        // (A light is an internally tagged enum: the path stops at it; the
+        // position is the spectrum's.)
+        words: &["lights[0]: duplicate name \"rgb\""],
+    },
+    Case {
+        id: "duplicate-material-override",
+        edits: &[(
+            "{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1}",
+            "{\"type\": \"gltf\", \"file\": \"nope.gltf\", \"materials\": {\"#0\": \"white\", \"#0\": \"white\"}}",
+        )],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:4:",
+        words: &["objects[0].shape: duplicate name \"#0\""],
+    },
+    Case {
         id: "index-out-of-range",
         edits: &[(
             "{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1}",
@@ -354,6 +394,8 @@ const TRUNCATE: &str = "\0truncate";
 
 const PREVIOUS: &[u8] = b"previous contents";
 
+const MIXED_OBJ: &str = "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nvn 0 1 0\nf 1//1 2//1 3//1\nf 1 3 4\n";
+
 fn case_dir(id: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("prism-bad-input-{}-{id}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
@@ -374,6 +416,8 @@ fn run(case: &Case) -> Result<(), String> {
     std::fs::write(dir.join("s.json"), &text).unwrap();
     std::fs::create_dir_all(dir.join("taken.exr")).unwrap();
     std::fs::create_dir_all(dir.join("taken-sidecar.json")).unwrap();
+    // An OBJ with normals on one face of two (tobj then gives 3 normals for 6 vertices).
+    std::fs::write(dir.join("mixed.obj"), MIXED_OBJ).unwrap();
     // An earlier part's state (its contents are never read by these cases).
     std::fs::write(dir.join("part.state"), PREVIOUS).unwrap();
     let out = if Path::new(case.out).is_absolute() { PathBuf::from(case.out) } else { dir.join(case.out) };

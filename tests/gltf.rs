@@ -212,6 +212,42 @@ fn unsupported_features_are_named_errors() {
     v["meshes"][0]["primitives"][0]["indices"] = json!(1);
     let e = parse(&v, "Triangle (bad indices)").err().unwrap();
     assert!(e.contains("nodes[0] (meshes[0]), primitive 0: indices must be SCALAR"), "{e}");
+
+    // A triangle too large for f32 normals (it would vanish from the BVH).
+    let mut v = read_json(&dir().join("Triangle.gltf"));
+    v["nodes"][0]["scale"] = json!([1e10, 1e10, 1e10]);
+    let e = parse(&v, "Triangle (huge)").err().unwrap();
+    assert!(e.contains("primitive 0: triangle 0 is too large for f32 arithmetic"), "{e}");
+
+    // A camera whose field of view has no area (light tracing divides by
+    // it), as the JSON loader refuses it.
+    let mut v = read_json(&dir().join("Triangle.gltf"));
+    v["cameras"] = json!([{"type": "perspective", "perspective": {"yfov": 1e-30, "znear": 0.1}}]);
+    v["nodes"] = json!([{"mesh": 0}, {"camera": 0, "translation": [0.5, 0.5, 3.0]}]);
+    v["scenes"][0]["nodes"] = json!([0, 1]);
+    let e = parse(&v, "Triangle (tiny yfov)").err().unwrap();
+    assert!(e.contains("nodes[1]: yfov 1e-30 rad is too small: the image has no area"), "{e}");
+
+    // The default camera frames any scene f32 can hold a camera for (its
+    // diagonal, 2e30 here, passes f32 when squared: it used to be NaN), and
+    // names the one it cannot.
+    let mut v = read_json(&dir().join("Triangle.gltf"));
+    let apart = |x: f64| json!([{"mesh": 0, "translation": [-x, 0, 0]}, {"mesh": 0, "translation": [x, 0, 0]}]);
+    v["nodes"] = apart(1e30);
+    v["scenes"][0]["nodes"] = json!([0, 1]);
+    let g = parse(&v, "Triangle (far apart)").unwrap();
+    let c = g.builder.build().camera;
+    assert!(c.position.is_finite() && c.position.z > 1e30, "{:?}", c.position);
+    v["nodes"] = apart(3e38);
+    let e = parse(&v, "Triangle (too far apart)").err().unwrap();
+    assert!(e.contains("too large to frame a default camera"), "{e}");
+
+    // Buffers and images are read only from regular files (a FIFO or a
+    // device would hang or exhaust memory).
+    let mut v = read_json(&dir().join("Triangle.gltf"));
+    v["buffers"][0]["uri"] = json!(".");
+    let e = parse(&v, "Triangle (buffer is a directory)").err().unwrap();
+    assert!(e.contains("not a regular file"), "{e}");
 }
 
 #[test]

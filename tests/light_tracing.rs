@@ -136,19 +136,24 @@ fn light_tracing_warns_about_what_a_pinhole_cannot_see() {
     // A scene so large (an object at 1e20) that light paths from the
     // environment, whose throughput carries pi R^2, leave f32: light and
     // bdpt lose them and say so; path does not use them.
-    let far = |x: f32| {
+    // The same for an environment so bright (1e37) that its light paths
+    // leave f32 in a small scene; a black one starts none and is not named.
+    let far = |x: f32, sky: f32| {
         let camera = Camera::new(Vec3A::new(0.0, 0.0, -4.0), Vec3A::ZERO, Vec3A::Y, 60.0, 32, 32);
         let mut b = SceneBuilder::new(camera);
         let m = b.material("white", Bsdf::Diffuse(Diffuse::new(Spectrum::Constant(0.5))));
         b.mesh("sphere", Mesh::sphere(Vec3A::ZERO, 1.0, 2, false), m, None);
         b.mesh("far", Mesh::sphere(Vec3A::new(x, 0.0, 0.0), 1.0, 1, false), m, None);
-        b.environment("sky", Spectrum::Constant(1.0));
+        b.environment("sky", Spectrum::Constant(sky));
         b.build()
     };
-    let lost = |s: &Scene, name: &str| integrator(name).unsamplable(s).iter().any(|m| m.contains("too large"));
-    let (huge, large) = (far(1e20), far(1e15));
+    let lost =
+        |s: &Scene, name: &str| integrator(name).unsamplable(s).iter().any(|m| m.contains("passes the f32 range"));
+    let (huge, large) = (far(1e20, 1.0), far(1e15, 1.0));
     assert!(lost(&huge, "light") && lost(&huge, "bdpt"), "the lost environment paths went unreported");
     assert!(!lost(&huge, "path") && !lost(&large, "light") && !lost(&large, "bdpt"));
+    assert!(lost(&far(2.0, 1e37), "light") && !lost(&far(2.0, 1e30), "light"));
+    assert!(!lost(&far(2.0, 0.0), "light") && !lost(&far(2.0, 0.0), "bdpt"), "a black environment was named");
 }
 
 /// A point light the pinhole sees directly is a point of the image too: all

@@ -35,7 +35,7 @@ use crate::camera::Camera;
 use crate::materials::{roughness_to_alpha, Bsdf, Conductor, Dielectric, Diffuse};
 use crate::shapes::Mesh;
 use crate::spectrum::{self, Spectrum};
-use glam::{Affine3A, Mat4, Vec3A};
+use glam::{Affine3A, DVec3, Mat4, Vec3A};
 use gltf::mesh::Mode;
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
@@ -71,7 +71,7 @@ pub struct GltfScene {
 /// relative to its directory.
 pub fn load_gltf(path: &Path) -> Result<GltfScene, LoadError> {
     let file = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|e| LoadError {
+    let bytes = super::read_regular_file(path).map_err(|e| LoadError {
         file: file.clone(),
         position: None,
         field: String::new(),
@@ -89,7 +89,9 @@ pub fn parse_gltf(bytes: &[u8], file: &str, dir: &Path) -> Result<GltfScene, Loa
         Some(c) => c.clone(),
         None => {
             imp.note("", "no perspective camera: default framing of the bounding box from +z, 30 degrees up");
-            default_camera(&content.meshes)
+            default_camera(&content.meshes).ok_or_else(|| {
+                imp.fail("", "the scene is too large to frame a default camera in f32: give it a camera node")
+            })?
         }
     };
     let mut b = SceneBuilder::new(camera);
@@ -144,7 +146,7 @@ pub(super) fn include(
 ) -> Result<(), IncludeError> {
     let err = |e: LoadError| IncludeError { key: None, message: e.to_string() };
     let file = path.display().to_string();
-    let bytes = std::fs::read(path)
+    let bytes = super::read_regular_file(path)
         .map_err(|e| IncludeError { key: None, message: format!("cannot read glTF file {file}: {e}") })?;
     let mut imp = Importer::open(&bytes, &file, path.parent().unwrap_or(Path::new("."))).map_err(err)?;
     let known: Vec<String> = imp.doc.materials().map(|m| material_key(&m)).collect();
@@ -299,7 +301,7 @@ impl Importer {
             return Err(format!("unsupported URI \"{uri}\" (prism reads data: URIs and relative paths)"));
         }
         let path = self.dir.join(percent_decode(uri));
-        std::fs::read(&path).map_err(|e| format!("cannot read {}: {e}", path.display()))
+        super::read_regular_file(&path).map_err(|e| format!("cannot read {}: {e}", path.display()))
     }
 
     fn message(&mut self, kind: &str, what: &str, msg: impl Into<String>) {
@@ -380,18 +382,22 @@ impl Importer {
 
     fn camera(&self, label: &str, world: Affine3A, yfov: f32, aspect: Option<f32>) -> Result<Camera, LoadError> {
         let position = world.translation;
-        let forward = world.transform_vector3a(-Vec3A::Z).normalize_or_zero();
-        let up = world.transform_vector3a(Vec3A::Y).normalize_or_zero();
-        if forward == Vec3A::ZERO || forward.cross(up).normalize_or_zero() == Vec3A::ZERO {
+        let (forward, up) = (world.transform_vector3a(-Vec3A::Z), world.transform_vector3a(Vec3A::Y));
+        let Some([forward, ..]) = Camera::frame(forward.as_dvec3(), up.as_dvec3()) else {
             return Err(self.fail(label, "the camera's transform is degenerate (no view or up direction)"));
-        }
+        };
         let fov = yfov.to_degrees();
         if !(fov.is_finite() && fov > 0.0 && fov < 180.0) {
             return Err(self.fail(label, format!("yfov {yfov} rad is not between 0 and pi")));
         }
         let aspect = aspect.filter(|a| a.is_finite() && *a > 0.0).unwrap_or(DEFAULT_ASPECT);
         let width = ((DEFAULT_HEIGHT as f32 * aspect).round() as u32).clamp(1, 16384);
-        Ok(Camera::new(position, position + forward, up, fov, width, DEFAULT_HEIGHT))
+        let camera = Camera::new(position, position + forward, up, fov, width, DEFAULT_HEIGHT);
+        // As the JSON loader: light tracing divides by the image's area.
+        if !(camera.image_area().is_normal() && camera.image_area().is_finite()) {
+            return Err(self.fail(label, format!("yfov {yfov:e} rad is too small: the image has no area")));
+        }
+        Ok(camera)
     }
 
     fn import_light(
@@ -519,6 +525,9 @@ impl Importer {
             m.transform(world);
             if m.positions.iter().any(|p| !p.is_finite()) {
                 return Err(self.fail(&pwhat, "vertex positions are not finite"));
+            }
+            if let Some(t) = m.oversized_triangle() {
+                return Err(self.fail(&pwhat, super::json::oversized_message(t)));
             }
             let material = self.material_slot(&prim.material())?;
             content.meshes.push(ImportedMesh { name: pwhat, mesh: m, material });
@@ -872,7 +881,7 @@ pub fn gltf_conductor_eta_k(r: f32) -> (f32, f32) {
 }
 
 /// The default framing (see DEFAULT_FOV_DEG).
-fn default_camera(meshes: &[ImportedMesh]) -> Camera {
+fn default_camera(meshes: &[ImportedMesh]) -> Option<Camera> {
     let (mut lo, mut hi) = (Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY));
     for m in meshes {
         for p in m.mesh.triangles().flatten() {
@@ -880,14 +889,19 @@ fn default_camera(meshes: &[ImportedMesh]) -> Camera {
             hi = hi.max(p);
         }
     }
+    // In f64: the box's diagonal passes f32 for extents beyond ~1.8e19.
+    let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
     let (center, radius) =
-        if lo.cmple(hi).all() { ((lo + hi) * 0.5, (hi - lo).length() * 0.5) } else { (Vec3A::ZERO, 1.0) };
+        if lo.cmple(hi).all() { ((lo + hi) * 0.5, (hi - lo).length() * 0.5) } else { (DVec3::ZERO, 1.0) };
     let radius = if radius > 0.0 { radius } else { 1.0 };
-    let elevation = DEFAULT_ELEVATION_DEG.to_radians();
-    let dir = Vec3A::new(0.0, elevation.sin(), elevation.cos());
-    let distance = radius / (DEFAULT_FOV_DEG.to_radians() * 0.5).sin();
+    let elevation = (DEFAULT_ELEVATION_DEG as f64).to_radians();
+    let dir = DVec3::new(0.0, elevation.sin(), elevation.cos());
+    let distance = radius / ((DEFAULT_FOV_DEG as f64).to_radians() * 0.5).sin();
+    let position = (center + dir * distance).as_vec3a();
     let width = (DEFAULT_HEIGHT as f32 * DEFAULT_ASPECT).round() as u32;
-    Camera::new(center + dir * distance, center, Vec3A::Y, DEFAULT_FOV_DEG, width, DEFAULT_HEIGHT)
+    position
+        .is_finite()
+        .then(|| Camera::new(position, center.as_vec3a(), Vec3A::Y, DEFAULT_FOV_DEG, width, DEFAULT_HEIGHT))
 }
 
 /// Standard or URL-safe base64 (RFC 4648), padding optional; None if

@@ -72,25 +72,28 @@ where
     D: serde::Deserializer<'de>,
     V: Deserialize<'de>,
 {
-    struct Names<V>(std::marker::PhantomData<V>);
-    impl<'de, V: Deserialize<'de>> serde::de::Visitor<'de> for Names<V> {
-        type Value = BTreeMap<String, V>;
-        fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
-            f.write_str("an object of named entries")
-        }
-        fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> Result<Self::Value, A::Error> {
-            let mut out = BTreeMap::new();
-            while let Some(name) = map.next_key::<String>()? {
-                if out.contains_key(&name) {
-                    return Err(serde::de::Error::custom(format!("duplicate name \"{name}\"")));
-                }
-                let value = map.next_value()?;
-                out.insert(name, value);
-            }
-            Ok(out)
-        }
-    }
     d.deserialize_map(Names(std::marker::PhantomData))
+}
+
+/// The visitor of `unique_names`.
+struct Names<V>(std::marker::PhantomData<V>);
+
+impl<'de, V: Deserialize<'de>> serde::de::Visitor<'de> for Names<V> {
+    type Value = BTreeMap<String, V>;
+    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        f.write_str("an object of named entries")
+    }
+    fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> Result<Self::Value, A::Error> {
+        let mut out = BTreeMap::new();
+        while let Some(name) = map.next_key::<String>()? {
+            if out.contains_key(&name) {
+                return Err(serde::de::Error::custom(format!("duplicate name \"{name}\"")));
+            }
+            let value = map.next_value()?;
+            out.insert(name, value);
+        }
+        Ok(out)
+    }
 }
 
 #[derive(Deserialize)]
@@ -218,7 +221,7 @@ struct GltfSpec {
     /// Relative to the scene file.
     file: String,
     /// glTF material name (or `#index`) -> a key of the scene's `materials`.
-    #[serde(default)]
+    #[serde(default, deserialize_with = "unique_names")]
     materials: BTreeMap<String, String>,
 }
 
@@ -342,8 +345,36 @@ const SPECTRUM_FORMS: &str =
 impl<'de> Deserialize<'de> for SpectrumSpec {
     fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
         use serde::de::Error;
-        let v = serde_json::Value::deserialize(d)?;
+        let v = d.deserialize_any(SpectrumValue)?;
         spectrum_from_value(&v).map_err(D::Error::custom)
+    }
+}
+
+/// A spectrum's JSON value: a number, a name, or an object whose keys
+/// (`unique_names`: a repeated "rgb" is an error, not the last one kept)
+/// `spectrum_from_value` reads. Anything else is refused with the forms.
+struct SpectrumValue;
+
+impl<'de> serde::de::Visitor<'de> for SpectrumValue {
+    type Value = serde_json::Value;
+    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        f.write_str(SPECTRUM_FORMS)
+    }
+    fn visit_u64<E>(self, x: u64) -> Result<Self::Value, E> {
+        Ok(x.into())
+    }
+    fn visit_i64<E>(self, x: i64) -> Result<Self::Value, E> {
+        Ok(x.into())
+    }
+    fn visit_f64<E>(self, x: f64) -> Result<Self::Value, E> {
+        Ok(x.into())
+    }
+    fn visit_str<E>(self, s: &str) -> Result<Self::Value, E> {
+        Ok(s.into())
+    }
+    fn visit_map<A: serde::de::MapAccess<'de>>(self, map: A) -> Result<Self::Value, A::Error> {
+        let fields: BTreeMap<String, serde_json::Value> = Names(std::marker::PhantomData).visit_map(map)?;
+        Ok(serde_json::Value::Object(fields.into_iter().collect()))
     }
 }
 
@@ -693,6 +724,21 @@ impl Ctx<'_> {
         let (models, _) = tobj::load_obj(&full, &opts)
             .map_err(|e| self.err(path, format!("cannot read mesh {}: {e}", full.display())))?;
         let mut mesh = Mesh { positions: Vec::new(), normals: Vec::new(), indices: Vec::new() };
+        // tobj gives fewer normals than positions when only some faces have
+        // them; which vertices lack one it does not say.
+        if let Some(m) =
+            models.iter().find(|m| !m.mesh.normals.is_empty() && m.mesh.normals.len() != m.mesh.positions.len())
+        {
+            let msg = format!(
+                "{}: object \"{}\" has normals on only some faces ({} normals for {} vertices): give every face normals, \
+                 or none",
+                full.display(),
+                m.name,
+                m.mesh.normals.len() / 3,
+                m.mesh.positions.len() / 3
+            );
+            return Err(self.err(path, msg));
+        }
         let with_normals = models.iter().all(|m| !m.mesh.normals.is_empty());
         for m in &models {
             let base = mesh.positions.len() as u32;
@@ -756,12 +802,9 @@ pub fn load_scene(path: &Path) -> Result<SceneBuilder, LoadError> {
         return Ok(g.builder);
     }
     let file = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| LoadError {
-        file: file.clone(),
-        position: None,
-        field: String::new(),
-        message: format!("cannot read scene file: {e}"),
-    })?;
+    let fail = |e: String| LoadError { file: file.clone(), position: None, field: String::new(), message: e };
+    let bytes = super::read_regular_file(path).map_err(|e| fail(format!("cannot read scene file: {e}")))?;
+    let text = String::from_utf8(bytes).map_err(|e| fail(format!("cannot read scene file: {e}")))?;
     let dir = path.parent().unwrap_or(Path::new("."));
     parse_scene(&text, &file, dir)
 }
@@ -827,6 +870,14 @@ fn include_gltf(
     })
 }
 
+/// The error for `Mesh::oversized_triangle` (shared with the glTF loader).
+pub(super) fn oversized_message(t: usize) -> String {
+    format!(
+        "triangle {t} is too large for f32 arithmetic (edges beyond ~4e9 units: the cross product of two edges, its \
+         normal and area, overflow); scale the scene down"
+    )
+}
+
 /// serde_json appends " at line L column C"; we print the position up front.
 fn strip_position(msg: &str) -> String {
     match msg.rfind(" at line ") {
@@ -847,9 +898,7 @@ fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
     if let Err(e) = Camera::check_resolution(c.width, c.height) {
         return Err(ctx.err(&with(&cam_path, "width"), e));
     }
-    // normalize_or_zero is zero on overflow as well as on a zero vector.
-    let forward = (look_at - position).normalize_or_zero();
-    if forward == Vec3A::ZERO || forward.cross(up).normalize_or_zero() == Vec3A::ZERO {
+    if Camera::frame(look_at.as_dvec3() - position.as_dvec3(), up.as_dvec3()).is_none() {
         return Err(ctx.err(&with(&cam_path, "look_at"), "look_at must differ from position and not be parallel to up"));
     }
     let camera = Camera::new(position, look_at, up, c.fov, c.width, c.height);
@@ -879,9 +928,12 @@ fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
         if let Some(t) = &o.transform {
             mesh.transform(ctx.transform(&with(&path, "transform"), t)?);
         }
+        let at = if o.transform.is_some() { with(&path, "transform") } else { with(&path, "shape") };
         if mesh.positions.iter().any(|p| !p.is_finite()) {
-            let at = if o.transform.is_some() { with(&path, "transform") } else { with(&path, "shape") };
             return Err(ctx.err(&at, "vertex positions overflow the f32 range"));
+        }
+        if let Some(t) = mesh.oversized_triangle() {
+            return Err(ctx.err(&at, oversized_message(t)));
         }
         let emission = match &o.emission {
             Some(e) => Some((ctx.spectrum(&with(&path, "emission"), e, Use::Emission)?, o.two_sided)),

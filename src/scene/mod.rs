@@ -71,6 +71,17 @@ struct MeshRecord {
 /// Geometric normal from the winding, normalize((v1 - v0) x (v2 - v0)), and
 /// the area; +z for a zero-area or non-finite triangle.
 #[inline]
+/// Reads a file the loaders name (scene, glTF, buffer, image), refusing
+/// anything but a regular file: a FIFO would hang the loader and /dev/zero
+/// would read until memory runs out.
+fn read_regular_file(path: &std::path::Path) -> std::io::Result<Vec<u8>> {
+    if std::fs::metadata(path)?.is_file() {
+        std::fs::read(path)
+    } else {
+        Err(std::io::Error::other("not a regular file"))
+    }
+}
+
 fn normal_and_area(v: &[Vec3A; 3]) -> (Vec3A, f32) {
     let cross = (v[1] - v[0]).cross(v[2] - v[0]);
     let area = 0.5 * cross.length();
@@ -455,6 +466,23 @@ impl Scene {
 mod tests {
     use super::*;
     use crate::materials::Diffuse;
+
+    /// A light bright enough (4e36 W/sr) that its luminance summed in f32
+    /// overflows is still sampled, in proportion to its power, beside a
+    /// normal one: an infinite power emptied the light sampler, and every
+    /// estimator rendered black.
+    #[test]
+    fn lights_near_the_top_of_f32_are_still_sampled() {
+        let camera = Camera::new(Vec3A::new(0.0, 0.0, -5.0), Vec3A::ZERO, Vec3A::Y, 40.0, 8, 8);
+        let mut b = SceneBuilder::new(camera);
+        b.point_light("lamp", Vec3A::Y, Spectrum::Constant(1.0));
+        b.point_light("star", Vec3A::X, Spectrum::Constant(4e36));
+        let scene = b.build();
+        assert!(scene.lights.iter().all(|l| l.power().is_finite()));
+        let picks: Vec<u32> =
+            [0.1, 0.5, 0.9].iter().map(|&u| scene.sample_light(u).expect("no light sampling").0).collect();
+        assert_eq!(picks, [1, 1, 1], "the brighter light is chosen (its pmf is ~1)");
+    }
 
     /// Meshes of every kind (flat, smooth, emissive, empty, with a
     /// degenerate triangle): `triangle` gives back what went in, and the

@@ -75,8 +75,18 @@ pub fn spectrum_to_xyz(s: &Spectrum) -> Vec3 {
     acc / CIE_Y_INTEGRAL
 }
 
-pub(super) fn luminance(s: &Spectrum) -> f32 {
-    spectrum_to_xyz(s).y
+/// Luminance Y of `s` (see `luminance_of`).
+pub(super) fn luminance(s: &Spectrum) -> f64 {
+    luminance_of(|l| s.eval(l) as f64)
+}
+
+/// Luminance Y of the spectrum `f` (nm -> value): the sum of f ybar over the
+/// 1 nm table divided by that of ybar. In f64: the sum of a spectrum near
+/// the top of the f32 range (an emission of 4e36) would overflow f32, and
+/// an infinite light power leaves a scene with no light sampling at all.
+pub(super) fn luminance_of(f: impl Fn(f32) -> f64) -> f64 {
+    let sum: f64 = CMF.iter().enumerate().map(|(i, c)| c[1] as f64 * f(LAMBDA_MIN + i as f32)).sum();
+    sum / CIE_Y_INTEGRAL as f64
 }
 
 #[cfg(test)]

@@ -115,7 +115,7 @@ impl Spectrum {
 
     /// Luminance Y of this spectrum as radiance: integral of s * ybar divided
     /// by the integral of ybar, so a constant v gives v.
-    pub fn luminance(&self) -> f32 {
+    pub fn luminance(&self) -> f64 {
         cie::luminance(self)
     }
 

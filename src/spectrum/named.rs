@@ -6,7 +6,7 @@
 //! (src/pbrt/util/spectrum.cpp). Tables are interpolated linearly between
 //! their samples onto the 1 nm grid, like pbrt-v4's `PiecewiseLinearSpectrum`.
 
-use super::{piecewise_linear_at, Spectrum};
+use super::{cie, piecewise_linear_at, Spectrum};
 use serde::Deserialize;
 use std::collections::HashMap;
 use std::sync::LazyLock;
@@ -88,7 +88,7 @@ static ILLUMINANTS: LazyLock<HashMap<String, Spectrum>> = LazyLock::new(|| {
         .map(|(name, t)| {
             let s = t.zero_outside(&name);
             let y = s.luminance();
-            (name, s.scale(1.0 / y))
+            (name, s.scale((1.0 / y) as f32))
         })
         .collect()
 });
@@ -119,6 +119,11 @@ pub fn illuminant(name: &str) -> Option<Spectrum> {
 /// Planck's law: spectral radiance of a blackbody at `kelvin`, in
 /// W / (m^2 sr nm), at `lambda_nm`. Non-positive temperatures give 0.
 pub fn planck(kelvin: f32, lambda_nm: f32) -> f32 {
+    planck64(kelvin, lambda_nm) as f32
+}
+
+/// `planck` in f64: above ~1e37 K the radiance passes the f32 range.
+fn planck64(kelvin: f32, lambda_nm: f32) -> f64 {
     // CODATA 2018 exact SI constants.
     const H: f64 = 6.626_070_15e-34;
     const C: f64 = 299_792_458.0;
@@ -130,7 +135,7 @@ pub fn planck(kelvin: f32, lambda_nm: f32) -> f32 {
     let x = H * C / (l * KB * kelvin as f64);
     // exp_m1 keeps the Rayleigh-Jeans limit (small x) accurate.
     let b = 2.0 * H * C * C / (l.powi(5) * x.exp_m1());
-    (b * 1e-9) as f32
+    b * 1e-9
 }
 
 /// Planck's law at `kelvin`, normalised to luminance Y = 1. A non-positive
@@ -139,12 +144,13 @@ pub fn blackbody(kelvin: f32) -> Spectrum {
     if !kelvin.is_finite() || kelvin <= 0.0 {
         return Spectrum::Constant(0.0);
     }
-    let s = Spectrum::from_fn(|l| planck(kelvin, l));
-    let y = s.luminance();
+    // Normalised in f64, before the values are rounded to f32: any finite
+    // temperature has a finite luminance there.
+    let y = cie::luminance_of(|l| planck64(kelvin, l));
     if y > 0.0 && y.is_finite() {
-        s.scale(1.0 / y)
+        Spectrum::from_fn(|l| (planck64(kelvin, l) / y) as f32)
     } else {
-        // So cold that the visible emission underflows f32.
+        // So cold that the visible emission underflows.
         Spectrum::Constant(0.0)
     }
 }
