@@ -1,4 +1,4 @@
-//! `prism converge` (src/converge.rs): a small run writes every output and
+//! `prism converge` (src/converge/): a small run writes every output and
 //! its CSV parses; relMSE against an exact reference falls as 1/spp for an
 //! unbiased estimator (the white room); grid checkpoints are reproducible;
 //! a time budget is respected; bad arguments fail clearly.

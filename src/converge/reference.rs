@@ -1,0 +1,205 @@
+//! The reference a run is measured against: read from a file (with
+//! whichever prism sidecar it has) or rendered here, and what is known of
+//! its origin and its own noise.
+
+use super::{spinner, ConvergeConfig, ReferenceInfo, ReferenceSource, REFERENCE_SEED_OFFSET};
+use crate::film::read_exr;
+use crate::integrators::{self, IntegratorOptions, MisHeuristic};
+use crate::reference::{make_reference, write_reference, ReferenceMeta};
+use crate::scene::Scene;
+use anyhow::{ensure, Context, Result};
+use serde::Deserialize;
+use std::path::Path;
+
+pub(super) fn obtain_reference(
+    cfg: &ConvergeConfig,
+    scene: &Scene,
+    scene_name: &str,
+    seed: u64,
+    max_depth: u32,
+    notes: &mut Vec<String>,
+) -> Result<(Vec<[f32; 3]>, ReferenceInfo)> {
+    let (w, h) = (scene.camera.width, scene.camera.height);
+    let (image, origin, path, here) = match &cfg.reference {
+        ReferenceSource::File(path) => {
+            if path.with_extension("json").exists() {
+                let (image, origin) = read_any_reference(path)?;
+                (image, Some(origin), path.clone(), false)
+            } else {
+                let (rw, rh, image) = read_exr(path)?;
+                ensure!((rw, rh) == (w, h), "{} is {rw}x{rh} but the run renders {w}x{h}", path.display());
+                (image, None, path.clone(), false)
+            }
+        }
+        ReferenceSource::Render { integrator, spp, passes, out } => {
+            if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+                std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+            }
+            let estimator = integrators::create(integrator, &IntegratorOptions { max_depth, mis: MisHeuristic::Power })
+                .map_err(anyhow::Error::msg)?;
+            let per_pass = spp.div_ceil(*passes);
+            // The largest block (for the sidecar's z-test statistics) that tiles the image.
+            let block = [8, 4, 2, 1].into_iter().find(|b| w % b == 0 && h % b == 0).unwrap_or(1);
+            let ref_seed = seed.wrapping_add(REFERENCE_SEED_OFFSET);
+            let bar = spinner(cfg.progress, format!("reference: {integrator}, {passes} passes x {per_pass} spp"));
+            let (image, meta) = make_reference(
+                scene,
+                scene_name,
+                estimator.as_ref(),
+                integrator,
+                per_pass,
+                *passes,
+                ref_seed,
+                block,
+                cfg.threads,
+                cfg.command.clone(),
+            );
+            bar.finish_and_clear();
+            eprintln!(
+                "reference: {integrator}, {passes} passes x {per_pass} spp in {:.1} s -> {}",
+                meta.wall_seconds,
+                out.display()
+            );
+            write_reference(out, &image, &meta)?;
+            (image, Some(Origin::of_reference(&meta)), out.clone(), true)
+        }
+    };
+    if let Some(m) = &origin {
+        if Path::new(&m.scene).file_name() != cfg.scene.file_name() {
+            notes.push(format!("the reference was rendered from {}, this run renders {scene_name}", m.scene));
+        }
+        // A reference from an estimator that cannot sample the whole scene
+        // is biased, and so is every error measured against it.
+        if let Ok(estimator) =
+            integrators::create(&m.integrator, &IntegratorOptions { max_depth, ..Default::default() })
+        {
+            for w in estimator.unsamplable(scene) {
+                notes.push(format!("the reference's integrator {} cannot sample this scene fully: {w}", m.integrator));
+            }
+        }
+        ensure!(
+            (m.width, m.height) == (w, h),
+            "{} is {}x{} but the run renders {w}x{h}",
+            path.display(),
+            m.width,
+            m.height
+        );
+        let seeds = m.seed..m.seed.saturating_add(m.passes.unwrap_or(1) as u64);
+        if seeds.contains(&seed) {
+            notes.push(format!(
+                "the reference's passes used seeds {}..{} which include the run's seed {seed}: its samples are \
+                 correlated with the run's, and the errors measured are too low",
+                seeds.start, seeds.end
+            ));
+        }
+    } else {
+        notes.push("the reference has no sidecar: its integrator, spp and noise are unknown".to_string());
+    }
+    let noise_floor = origin.as_ref().and_then(|m| m.noise_floor);
+    let info = ReferenceInfo {
+        path: path.display().to_string(),
+        rendered_here: here,
+        integrator: origin.as_ref().map(|m| m.integrator.clone()),
+        spp: origin.as_ref().map(|m| m.spp),
+        passes: origin.as_ref().and_then(|m| m.passes),
+        seed: origin.as_ref().map(|m| m.seed),
+        wall_seconds: origin.as_ref().and_then(|m| m.wall_seconds),
+        noise_floor,
+        noise_floor_method: noise_floor.map(|_| "block errors".to_string()),
+    };
+    Ok((image, info))
+}
+
+/// Where a reference image came from, as its sidecar says: a `prism
+/// reference` sidecar, or the sidecar of a `prism render` or `prism merge`
+/// (docs/cluster.md makes long references that way), which has no block
+/// errors and so no noise estimate.
+struct Origin {
+    scene: String,
+    integrator: String,
+    seed: u64,
+    width: u32,
+    height: u32,
+    /// Total samples per pixel (over all passes).
+    spp: u64,
+    passes: Option<u32>,
+    wall_seconds: Option<f64>,
+    noise_floor: Option<f64>,
+}
+
+/// The fields of a render or merge sidecar that `Origin` needs (the rest
+/// is ignored).
+#[derive(Deserialize)]
+struct RenderSidecar {
+    scene: String,
+    integrator: String,
+    seed: u64,
+    width: u32,
+    height: u32,
+    spp: u64,
+    passes: Option<u32>,
+    wall_seconds: Option<f64>,
+}
+
+impl Origin {
+    fn of_reference(m: &ReferenceMeta) -> Self {
+        Origin {
+            scene: m.scene.clone(),
+            integrator: m.integrator.clone(),
+            seed: m.seed,
+            width: m.width,
+            height: m.height,
+            spp: m.spp as u64 * m.passes as u64,
+            passes: Some(m.passes),
+            wall_seconds: Some(m.wall_seconds),
+            noise_floor: Some(noise_floor(m)),
+        }
+    }
+
+    fn of_render(r: RenderSidecar) -> Self {
+        Origin {
+            scene: r.scene,
+            integrator: r.integrator,
+            seed: r.seed,
+            width: r.width,
+            height: r.height,
+            spp: r.spp * r.passes.unwrap_or(1) as u64,
+            passes: r.passes,
+            wall_seconds: r.wall_seconds,
+            noise_floor: None,
+        }
+    }
+}
+
+/// A reference EXR and its sidecar, of either kind (`Origin`).
+fn read_any_reference(exr: &Path) -> Result<(Vec<[f32; 3]>, Origin)> {
+    let json = exr.with_extension("json");
+    let text = std::fs::read_to_string(&json).with_context(|| format!("cannot read {}", json.display()))?;
+    let origin = match serde_json::from_str::<ReferenceMeta>(&text) {
+        Ok(m) => Origin::of_reference(&m),
+        Err(_) => serde_json::from_str::<RenderSidecar>(&text).map(Origin::of_render).with_context(|| {
+            format!("{}: neither a reference sidecar nor a render or merge sidecar", json.display())
+        })?,
+    };
+    let (w, h, image) = read_exr(exr)?;
+    ensure!((w, h) == (origin.width, origin.height), "{}: size {w}x{h} differs from its sidecar", exr.display());
+    Ok((image, origin))
+}
+
+/// The relMSE the reference's own noise adds to every measurement: the
+/// per-pixel variance of its mean is about block^2 x (block standard error)^2
+/// when neighbouring pixels are independent, divided by ref^2 + 0.01 as relMSE is.
+fn noise_floor(m: &ReferenceMeta) -> f64 {
+    let b2 = (m.block * m.block) as f64;
+    let terms = m
+        .block_mean
+        .iter()
+        .zip(&m.block_stderr)
+        .flat_map(|(mean, se)| (0..3).map(move |c| b2 * se[c] * se[c] / (mean[c] * mean[c] + 0.01)));
+    let (sum, n) = terms.fold((0.0, 0usize), |(s, n), t| (s + t, n + 1));
+    if n == 0 {
+        0.0
+    } else {
+        sum / n as f64
+    }
+}
