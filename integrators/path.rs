@@ -6,7 +6,10 @@
 //! their only strategy.
 //! A point light the camera sees directly is a delta in the image plane
 //! that no camera ray hits: `unsamplable` names it (light and bdpt render
-//! it; pbrt-v4's path tracer has the same blind spot).
+//! it; pbrt-v4's path tracer has the same blind spot). So is a point
+//! light's caustic: light that leaves it by a smooth specular bounce (glass,
+//! a mirror) before a diffuse one can reach no NEE, and no BSDF-sampled ray
+//! hits a point; `unsamplable` names those too.
 //!
 //! | parameter | type | default | meaning                          |
 //! |-----------|------|---------|----------------------------------|
@@ -97,6 +100,12 @@ impl Integrator for PathTracer {
 
     fn unsamplable(&self, scene: &Scene) -> Vec<String> {
         let mut warnings = crate::path::specular_chains_to_point_lights(scene);
+        // A camera path reaches a point light only by next-event estimation
+        // from a non-specular vertex: light that leaves it by a smooth
+        // specular bounce first (a caustic, L S+ D ... E) is never sampled.
+        warnings.extend(crate::path::point_lights_with_specular(scene, |name, specular| {
+            format!("path tracing cannot reach the point light \"{name}\" through the smooth specular material(s) {specular}: its caustics (light -> specular -> diffuse) are missing from the image (light and bdpt render them)")
+        }));
         warnings.extend(crate::path::point_lights_in_view(scene).into_iter().map(|name| {
             format!("path tracing cannot see the point light \"{name}\" directly through the pinhole: its pixel will lack the light itself (light and bdpt render it)")
         }));

@@ -586,6 +586,16 @@ pub fn environment_paths_overflow(scene: &Scene) -> Option<String> {
 /// estimators (Veach 1997 §8.3.2). This returns a warning per point light in
 /// a scene that has smooth specular materials.
 pub fn specular_chains_to_point_lights(scene: &Scene) -> Vec<String> {
+    point_lights_with_specular(scene, |name, specular| {
+        format!(
+            "point light \"{name}\" seen via the smooth specular material(s) {specular} then a diffuse surface and specular again (S-D-S) cannot be sampled by any estimator with a pinhole camera; such caustics will be missing"
+        )
+    })
+}
+
+/// One message per point light, `message(light, materials)`, if the scene
+/// has smooth specular materials (listed, comma-separated).
+pub fn point_lights_with_specular(scene: &Scene, message: impl Fn(&str, &str) -> String) -> Vec<String> {
     let specular: Vec<&str> = scene
         .materials
         .iter()
@@ -595,16 +605,12 @@ pub fn specular_chains_to_point_lights(scene: &Scene) -> Vec<String> {
     if specular.is_empty() {
         return Vec::new();
     }
+    let specular = specular.join(", ");
     scene
         .lights
         .iter()
         .zip(&scene.light_names)
         .filter(|(l, _)| l.is_delta_position())
-        .map(|(_, name)| {
-            format!(
-                "point light \"{name}\" seen via the smooth specular material(s) {} then a diffuse surface and specular again (S-D-S) cannot be sampled by any estimator with a pinhole camera; such caustics will be missing",
-                specular.join(", ")
-            )
-        })
+        .map(|(_, name)| message(name, &specular))
         .collect()
 }
