@@ -53,8 +53,15 @@ impl Camera {
     /// `look_at` and `up` must give a `frame` (loaders check first); the
     /// camera of one that does not has a NaN basis.
     pub fn new(position: Vec3A, look_at: Vec3A, up: Vec3A, fov_y_deg: f32, width: u32, height: u32) -> Self {
-        let [forward, right, up] =
-            Self::frame(look_at.as_dvec3() - position.as_dvec3(), up.as_dvec3()).unwrap_or([Vec3A::NAN; 3]);
+        let forward = look_at.as_dvec3() - position.as_dvec3();
+        Self::looking(position, forward, up.as_dvec3(), fov_y_deg, width, height)
+    }
+
+    /// `new` with a view direction instead of a point to look at (a glTF
+    /// camera's -z: far from the origin, position + direction in f32 would
+    /// lose the direction).
+    pub fn looking(position: Vec3A, forward: DVec3, up: DVec3, fov_y_deg: f32, width: u32, height: u32) -> Self {
+        let [forward, right, up] = Self::frame(forward, up).unwrap_or([Vec3A::NAN; 3]);
         let half_h = (fov_y_deg.to_radians() * 0.5).tan();
         let half_w = half_h * width as f32 / height as f32;
         Self { position, forward, right, up, width, height, half_w, half_h }
@@ -107,6 +114,12 @@ impl Camera {
     #[inline]
     pub fn image_area(&self) -> f32 {
         4.0 * self.half_w * self.half_h
+    }
+
+    /// Whether the image has an area light tracing can divide by (a normal
+    /// f32: a tiny field of view underflows it; loaders refuse such a camera).
+    pub fn has_image_area(&self) -> bool {
+        self.image_area().is_normal()
     }
 
     /// The ray through raster position `raster` (pixels, origin top-left).

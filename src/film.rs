@@ -282,10 +282,12 @@ fn srgb_encode(c: f32) -> f32 {
 
 /// Writes a JSON document atomically.
 pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
-    let text = serde_json::to_string_pretty(value)?;
-    write_atomically(path, |tmp| {
-        std::fs::write(tmp, text + "\n").with_context(|| format!("cannot write {}", path.display()))
-    })
+    write_bytes(path, (serde_json::to_string_pretty(value)? + "\n").as_bytes())
+}
+
+/// Writes `bytes` to `path` atomically (`write_atomically`).
+pub fn write_bytes(path: &Path, bytes: &[u8]) -> Result<()> {
+    write_atomically(path, |tmp| std::fs::write(tmp, bytes).with_context(|| format!("cannot write {}", path.display())))
 }
 
 #[cfg(test)]

@@ -249,11 +249,10 @@ fn reference_command(a: ReferenceArgs) -> Result<()> {
     builder.set_resolution(a.width, a.height);
     let integrator = integrators::create(&a.integrator, &IntegratorOptions::default()).map_err(anyhow::Error::msg)?;
     ensure_exr("--out", &a.out)?;
-    let sidecar = a.out.with_extension("json");
-    for path in [&a.out, &sidecar] {
-        check_writable(path)?;
-    }
-    check_outputs(&[("the scene", &a.scene)], &[("--out", &a.out), ("its sidecar", &sidecar)])?;
+    check_new_outputs(
+        &[("the scene", &a.scene)],
+        &[("--out", &a.out), ("its sidecar", &a.out.with_extension("json"))],
+    )?;
     let scene = builder.build();
     let name = a.scene.display().to_string();
     let (image, meta) = prism::reference::make_reference(
@@ -338,25 +337,24 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
         builder.set_resolution(w, h);
     }
     ensure_exr("--out", &a.out)?;
-    let outputs = render_outputs(a);
-    for (_, path) in &outputs {
-        check_writable(path)?;
-    }
     let state = a.out.with_extension("state");
     if !writes_state(a) && state.exists() {
         bail!(
-            "{} holds an earlier part's samples, and this render (no --sample-range, not resumed from a .state) \
-             would leave it stale beside the new {} for `prism merge`: remove it or choose another --out",
+            "{} holds the samples of a part or a merge, and this render (neither --sample-range nor --resume) \
+             would leave it stale beside the new {} for `prism merge`: remove it, choose another --out, or render \
+             the part with --sample-range A..B",
             state.display(),
             a.out.display()
         );
     }
+    let outputs = render_outputs(a);
     let outputs: Vec<(&str, &Path)> = outputs.iter().map(|(r, p)| (*r, p.as_path())).collect();
-    check_outputs(&[("the scene", &a.scene)], &outputs)?;
+    check_new_outputs(&[("the scene", &a.scene)], &outputs)?;
     if let Some(resume) = &a.resume {
         // It may be replaced only by its own successor, once it is read:
         // the checkpoint or the state file.
-        let others: Vec<_> = outputs.iter().copied().filter(|(r, _)| !RESUMABLE.contains(r)).collect();
+        let (ckpt, state) = (a.out.with_extension("ckpt"), a.out.with_extension("state"));
+        let others: Vec<_> = outputs.iter().copied().filter(|&(_, p)| p != ckpt && p != state).collect();
         check_outputs(&[("the checkpoint (--resume)", resume)], &others)?;
     }
     if let Some(dir) = &a.strategies {
@@ -397,14 +395,22 @@ fn render_outputs(a: &RenderArgs) -> Vec<(&'static str, PathBuf)> {
     outs
 }
 
-/// The outputs of `render_outputs` that a render may resume from.
-const RESUMABLE: [&str; 2] = ["its state file", "its checkpoint"];
-
 /// Whether the render writes OUT.state, the sums `prism merge` reads: a
-/// part (--sample-range), or a part grown from its .state (--resume), whose
-/// old state would otherwise be left behind holding fewer samples.
+/// part (--sample-range), or any resumed render (from a part's .state it
+/// grows, or from a checkpoint of a part or of a grown part), whose old
+/// state would otherwise be left behind holding fewer samples. A resumed
+/// whole render gets one too: it is a valid part of samples 0..spp.
 fn writes_state(a: &RenderArgs) -> bool {
-    a.sample_range.is_some() || a.resume.as_ref().is_some_and(|r| r.extension().is_some_and(|e| e == "state"))
+    a.sample_range.is_some() || a.resume.is_some()
+}
+
+/// Before anything is rendered: every output writable (its directory
+/// exists, it is not a directory) and none replacing an input or another.
+fn check_new_outputs(inputs: &[(&str, &Path)], outputs: &[(&str, &Path)]) -> Result<()> {
+    for (_, path) in outputs {
+        check_writable(path)?;
+    }
+    check_outputs(inputs, outputs)
 }
 
 fn render_command(a: RenderArgs) -> Result<()> {
@@ -522,10 +528,7 @@ fn merge_command(out: &Path, parts: &[PathBuf]) -> Result<()> {
     ensure_exr("the merge output", out)?;
     let inputs: Vec<PathBuf> = parts.iter().map(|p| p.with_extension("state")).collect();
     let (state, sidecar) = (out.with_extension("state"), out.with_extension("json"));
-    for path in [out, &state, &sidecar] {
-        check_writable(path)?;
-    }
-    check_outputs(
+    check_new_outputs(
         &inputs.iter().map(|p| ("the part state", p.as_path())).collect::<Vec<_>>(),
         &[("the merged image", out), ("its sidecar", &sidecar), ("its state file", &state)],
     )?;
@@ -535,9 +538,11 @@ fn merge_command(out: &Path, parts: &[PathBuf]) -> Result<()> {
         .collect::<Result<Vec<_>>>()?;
     let merged = RenderState::merge(states)?;
     let (id, film) = (&merged.identity, &merged.film);
-    // The image first: its writer is the one with more ways to fail.
-    film::write_exr(out, id.width, id.height, &film.image())?;
+    // The state first, as a render writes it: it is what `merge` reads, and
+    // if the process dies in between, a new state beside an old image is
+    // merged correctly where the reverse would be merged stale.
     RenderState::save(&state, id, &merged.sample_ranges, film)?;
+    film::write_exr(out, id.width, id.height, &film.image())?;
     let mut meta = Sidecar::new(id.clone(), film.spp, &merged.sample_ranges, film.dropped);
     meta.state = Some(file_name(&state));
     film::write_json(&sidecar, &meta)?;

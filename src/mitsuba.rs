@@ -40,7 +40,7 @@
 //! | --height | the scene's  | image height (`$height`)                 |
 //! | --spp    | 64           | samples per pixel (`$spp`)               |
 
-use crate::film::write_atomically;
+use crate::film::write_bytes;
 use crate::light::Light;
 use crate::materials::Bsdf;
 use crate::scene::{load_scene, Scene};
@@ -180,9 +180,7 @@ pub fn export(scene: &Scene, dir: &Path, spp: u32) -> Result<usize> {
     }
     let _ = writeln!(xml, "</scene>");
     let path = dir.join("scene.xml");
-    write_atomically(&path, |tmp| {
-        std::fs::write(tmp, xml).with_context(|| format!("cannot write {}", path.display()))
-    })?;
+    write_bytes(&path, xml.as_bytes())?;
     Ok(groups.len())
 }
 
@@ -224,7 +222,7 @@ fn write_ply(path: &Path, positions: &[Vec3A], normals: &[Vec3A]) -> Result<()> 
             bytes.extend((3 * t + j).to_le_bytes());
         }
     }
-    write_atomically(path, |tmp| std::fs::write(tmp, bytes).with_context(|| format!("cannot write {}", path.display())))
+    write_bytes(path, &bytes)
 }
 
 #[cfg(test)]

@@ -78,7 +78,9 @@ const CASES: &[Case] = &[
         args: &[],
         out: "out.exr",
         position: "s.json:3:",
-        words: &["materials.white", "expected a number, a spectrum name, or an object"],
+        words: &[
+            "materials.white: invalid type: sequence, expected a number, a spectrum name, or an object with one of",
+        ],
     },
     Case {
         id: "missing-field",
@@ -369,7 +371,7 @@ const CASES: &[Case] = &[
         args: &[],
         out: "part.exr",
         position: "",
-        words: &["part.state holds an earlier part's samples", "would leave it stale"],
+        words: &["part.state holds the samples of a part or a merge", "would leave it stale", "--sample-range A..B"],
     },
     Case {
         id: "output-replaces-checkpoint",

@@ -196,8 +196,10 @@ fn outputs_never_replace_the_scene_or_each_other() {
 
 /// A part grown from its own state (`--resume p.state` with a larger
 /// `--spp`) writes its state again, so `merge` sees every sample the grown
-/// part's image holds (it used to keep the old state: 4 of 16 samples);
-/// and `--mis`, which path ignores, does not stop its parts from merging.
+/// part's image holds (it used to keep the old state: 4 of 16 samples); so
+/// does one resumed from a checkpoint (same format as a state: a copy
+/// stands in for a killed render's); and `--mis`, which path ignores, does
+/// not stop its parts from merging.
 #[test]
 fn grown_parts_and_ignored_options_merge() {
     let d = temp_dir("grow");
@@ -210,7 +212,10 @@ fn grown_parts_and_ignored_options_merge() {
         assert!(o.status.success(), "{extra:?}: {}", stderr(&o));
     };
     render(&["--sample-range", "0..1", "--out", &path("p0.exr")]);
-    render(&["--spp", "3", "--resume", &path("p0.state"), "--out", &path("p0.exr")]);
+    render(&["--spp", "2", "--resume", &path("p0.state"), "--out", &path("p0.exr")]);
+    std::fs::copy(d.join("p0.state"), d.join("p0.ckpt")).unwrap();
+    render(&["--spp", "3", "--resume", &path("p0.ckpt"), "--checkpoint-every", "100", "--out", &path("p0.exr")]);
+    assert!(!d.join("p0.ckpt").exists(), "the finished render kept its checkpoint");
     render(&["--sample-range", "3..5", "--mis", "balance", "--out", &path("p1.exr")]);
     let o = prism(&["merge", &path("all.exr"), &path("p0.exr"), &path("p1.exr")]);
     assert!(o.status.success(), "{}", stderr(&o));

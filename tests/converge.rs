@@ -318,6 +318,7 @@ fn more_bad_arguments_fail_before_rendering() {
     let o = out.to_str().unwrap();
     let exact = white_room_reference(&d, 8);
     let exact = exact.to_str().unwrap();
+    let reference_png = d.join("r.png").display().to_string();
     let run = |extra: &[&str]| {
         let mut args = vec!["converge", "scenes/white-room.json", "--spp", "2", "--height", "8"];
         args.extend_from_slice(extra);
@@ -328,7 +329,7 @@ fn more_bad_arguments_fail_before_rendering() {
     };
     let cases: [(&[&str], &str); 4] = [
         (&["--integrators", "bdpt,bdpt:power", "--reference", exact, "--out", o], "are the same estimator"),
-        (&["--reference-spp", "2", "--reference-out", "r.png", "--out", o], "--reference-out must name an .exr"),
+        (&["--reference-spp", "2", "--reference-out", &reference_png, "--out", o], "--reference-out must name an .exr"),
         (&["--reference", exact, "--exposure", "130", "--out", o], "--exposure must be a number of stops"),
         (&["--reference", exact, "--width", "16", "--out", o], "but the run renders 16x8"),
     ];
@@ -338,6 +339,21 @@ fn more_bad_arguments_fail_before_rendering() {
         assert!(!r.status.success() && e.contains(message), "{args:?}: {e}");
         assert!(!out.exists(), "{args:?}: left {} behind", out.display());
     }
+    // An --out that cannot be made stops the run before the reference is
+    // rendered and written.
+    std::fs::write(d.join("afile"), b"").unwrap();
+    let (rendered, blocked) = (d.join("r2.exr"), d.join("afile/o"));
+    let r = run(&[
+        "--reference-spp",
+        "2",
+        "--reference-out",
+        rendered.to_str().unwrap(),
+        "--out",
+        blocked.to_str().unwrap(),
+    ]);
+    let e = String::from_utf8_lossy(&r.stderr);
+    assert!(!r.status.success() && e.contains("cannot create"), "{e}");
+    assert!(!rendered.exists(), "the reference was rendered before --out was known to work");
     std::fs::create_dir_all(out.join("report.md")).unwrap();
     let r = run(&["--integrators", "path", "--reference", exact, "--out", o]);
     let e = String::from_utf8_lossy(&r.stderr);
@@ -348,37 +364,43 @@ fn more_bad_arguments_fail_before_rendering() {
 
 /// docs/cluster.md makes long references with `prism render` (and parts
 /// merged by `prism merge`): their sidecars are not `prism reference`'s,
-/// and converge takes them, with their integrator and spp, and no noise
-/// estimate from block errors.
+/// and converge takes them, with their integrator, spp, MIS heuristic and
+/// max depth, and no noise estimate from block errors. One made of the
+/// run's seed from sample 0 shares its sample streams and is flagged; a
+/// merge of later samples of that seed does not, and is not.
 #[test]
 fn a_rendered_reference_is_accepted() {
     let d = temp_dir("rendered-ref");
-    let reference = d.join("ref.exr");
-    let r = prism(&[
-        "render",
-        "scenes/white-room.json",
-        "--integrator",
-        "bdpt",
-        "--spp",
-        "4",
-        "--width",
-        "8",
-        "--height",
-        "8",
-        "--seed",
-        "99",
-        "--quiet",
-        "--out",
-        reference.to_str().unwrap(),
-    ]);
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    let mut cfg = config("white-room.json", "path", ReferenceSource::File(reference), &d.join("o"), 8);
-    cfg.max_spp = Some(2);
-    let r = run(&cfg).unwrap();
-    assert_eq!(r.reference.integrator.as_deref(), Some("bdpt"));
+    let render = |extra: &[&str]| {
+        let mut args = vec!["render", "scenes/white-room.json", "--width", "8", "--height", "8", "--quiet"];
+        args.extend_from_slice(extra);
+        let r = prism(&args);
+        assert!(r.status.success(), "{extra:?}: {}", String::from_utf8_lossy(&r.stderr));
+    };
+    let path = |name: &str| d.join(name).display().to_string();
+    let measure = |reference: &str| {
+        let mut cfg = config("white-room.json", "path", ReferenceSource::File(d.join(reference)), &d.join("o"), 8);
+        cfg.max_spp = Some(2);
+        let r = run(&cfg).unwrap();
+        (r, std::fs::read_to_string(d.join("o/report.md")).unwrap())
+    };
+    let correlated = |r: &ConvergeResults| r.notes.iter().any(|n| n.contains("correlated"));
+    render(&["--integrator", "bdpt", "--mis", "balance", "--spp", "4", "--seed", "99", "--out", &path("ref.exr")]);
+    let (r, report) = measure("ref.exr");
+    assert_eq!((r.reference.integrator.as_deref(), r.reference.mis.as_deref()), (Some("bdpt"), Some("balance")));
     assert_eq!((r.reference.spp, r.reference.seed, r.reference.passes), (Some(4), Some(99), None));
-    let report = std::fs::read_to_string(d.join("o/report.md")).unwrap();
     assert!(report.contains("bdpt, 4 spp (seed 99)"), "{report}");
+    assert!(!correlated(&r), "{:?}", r.notes);
+
+    render(&["--integrator", "path", "--spp", "4", "--seed", "11", "--out", &path("same.exr")]);
+    assert!(correlated(&measure("same.exr").0), "a reference of the run's own samples was not flagged");
+    render(&["--integrator", "path", "--sample-range", "4..6", "--seed", "11", "--out", &path("p0.exr")]);
+    render(&["--integrator", "path", "--sample-range", "6..8", "--seed", "11", "--out", &path("p1.exr")]);
+    let m = prism(&["merge", &path("merged.exr"), &path("p0.exr"), &path("p1.exr")]);
+    assert!(m.status.success(), "{}", String::from_utf8_lossy(&m.stderr));
+    let (r, _) = measure("merged.exr");
+    assert_eq!((r.reference.spp, r.reference.seed, r.reference.wall_seconds), (Some(4), Some(11), None));
+    assert!(!correlated(&r), "later samples of the run's seed flagged: {:?}", r.notes);
     std::fs::remove_dir_all(&d).unwrap();
 }
 

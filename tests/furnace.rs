@@ -49,9 +49,10 @@ const CONTROL: f64 = 1.02;
 /// enough for each to reject the x1.02 control. A dispersive BSDF keeps one
 /// wavelength of four, and its colour noise needs 16x the samples where the
 /// camera sees it directly, 4x over the floor (where ~40 % of the light has
-/// passed through it; 2x for light tracing). Light tracing over the floor
-/// needs 2x in any case: its paths start on a disk as wide as the scene,
-/// and the floor in view is ~6 % of it.
+/// passed through it). Light tracing over the floor needs 2x the base in
+/// any case (its paths start on a disk as wide as the scene, and the floor
+/// in view is ~6 % of it), and then only 2x more for dispersion: 4x its
+/// base, as for the others.
 fn spp(integrator: &str, dispersive: bool, view: View) -> u32 {
     let base = match (integrator, view) {
         ("light", View::OverFloor) => 8192,

@@ -227,6 +227,13 @@ fn unsupported_features_are_named_errors() {
     v["scenes"][0]["nodes"] = json!([0, 1]);
     let e = parse(&v, "Triangle (tiny yfov)").err().unwrap();
     assert!(e.contains("nodes[1]: yfov 1e-30 rad is too small: the image has no area"), "{e}");
+    // Far from the origin a camera keeps its direction (position +
+    // direction in f32 would round it to the axis).
+    let (s, c) = (18.434949f64.to_radians().sin(), 18.434949f64.to_radians().cos());
+    v["cameras"][0]["perspective"]["yfov"] = json!(0.7);
+    v["nodes"][1] = json!({"camera": 0, "translation": [1e8, 0.0, 3.0], "rotation": [0.0, s, 0.0, c]});
+    let forward = parse(&v, "Triangle (far camera)").unwrap().builder.build().camera.orientation().0;
+    assert!((forward - Vec3A::new(-0.6, 0.0, -0.8)).length() < 1e-5, "{forward}");
 
     // The default camera frames any scene f32 can hold a camera for (its
     // diagonal, 2e30 here, passes f32 when squared: it used to be NaN), and

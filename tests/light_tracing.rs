@@ -258,6 +258,11 @@ fn point_light_caustics_are_missing_from_path_and_it_says_so() {
     let v = versus(&light, &bdpt);
     eprintln!("glass ball, light vs bdpt: {v}");
     assert!(v.passed(), "light and bdpt disagree on the caustic: {v}");
+    // Their agreement has the power to see a 10 % difference, half of what
+    // path lacks.
+    let v = versus(&light.scaled(1.1), &bdpt);
+    eprintln!("glass ball, light x1.1 vs bdpt (control): {v}");
+    assert!(!v.passed(), "light x1.1 went undetected: {v}");
     let v = versus(&path, &bdpt);
     eprintln!("glass ball, path vs bdpt: {v}");
     let mean = |c: &ColourStats| c.y.mean.iter().map(|m| m[0]).sum::<f64>();

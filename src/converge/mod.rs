@@ -434,6 +434,10 @@ pub struct ReferenceInfo {
     pub spp: Option<u64>,
     pub passes: Option<u32>,
     pub seed: Option<u64>,
+    /// Its integrator's MIS heuristic (absent in results written before it
+    /// was recorded).
+    #[serde(default)]
+    pub mis: Option<String>,
     pub wall_seconds: Option<f64>,
     /// Expected relMSE of the reference itself: the floor under every
     /// measured curve (see `noise_floor_method`).
@@ -573,7 +577,8 @@ pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
     }
 
     let mut info = info;
-    let same = results.iter().find(|x| Some(&x.integrator) == info.integrator.as_ref() && x.mis == "power");
+    let same =
+        results.iter().find(|x| Some(&x.integrator) == info.integrator.as_ref() && Some(&x.mis) == info.mis.as_ref());
     if let (Some(x), Some(n_ref)) = (same, info.spp) {
         // m = V/n + V/N at the last checkpoint (independent seeds), so V/N = m / (N/n + 1).
         info.noise_floor = Some(x.rel_mse / (n_ref as f64 / x.spp as f64 + 1.0));

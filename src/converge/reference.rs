@@ -32,7 +32,9 @@ pub(super) fn obtain_reference(
             }
         }
         ReferenceSource::Render { integrator, spp, passes, out } => {
-            if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+            // Both directories now, so that one that cannot be made stops
+            // the run before the reference is rendered.
+            for dir in out.parent().filter(|d| !d.as_os_str().is_empty()).into_iter().chain([cfg.out.as_path()]) {
                 std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
             }
             let estimator = integrators::create(integrator, &IntegratorOptions { max_depth, mis: MisHeuristic::Power })
@@ -84,8 +86,17 @@ pub(super) fn obtain_reference(
             m.width,
             m.height
         );
+        if m.max_depth.is_some_and(|d| d != max_depth) {
+            notes.push(format!(
+                "the reference was rendered with max depth {}, this run uses {max_depth}: they estimate different images",
+                m.max_depth.unwrap_or_default()
+            ));
+        }
+        // The run renders samples 0.. of seed `seed` (the sampler is keyed
+        // by seed, pixel and sample index): a reference shares its streams
+        // if it used that seed from sample 0.
         let seeds = m.seed..m.seed.saturating_add(m.passes.unwrap_or(1) as u64);
-        if seeds.contains(&seed) {
+        if seeds.contains(&seed) && m.first_sample == 0 {
             notes.push(format!(
                 "the reference's passes used seeds {}..{} which include the run's seed {seed}: its samples are \
                  correlated with the run's, and the errors measured are too low",
@@ -103,6 +114,7 @@ pub(super) fn obtain_reference(
         spp: origin.as_ref().map(|m| m.spp),
         passes: origin.as_ref().and_then(|m| m.passes),
         seed: origin.as_ref().map(|m| m.seed),
+        mis: origin.as_ref().map(|m| m.mis.clone()),
         wall_seconds: origin.as_ref().and_then(|m| m.wall_seconds),
         noise_floor,
         noise_floor_method: noise_floor.map(|_| "block errors".to_string()),
@@ -123,6 +135,12 @@ struct Origin {
     /// Total samples per pixel (over all passes).
     spp: u64,
     passes: Option<u32>,
+    /// Its MIS heuristic, as its integrator records it.
+    mis: String,
+    /// None for `prism reference`, which does not record it.
+    max_depth: Option<u32>,
+    /// The first sample index it rendered (a part may start later).
+    first_sample: u32,
     wall_seconds: Option<f64>,
     noise_floor: Option<f64>,
 }
@@ -138,7 +156,9 @@ struct RenderSidecar {
     height: u32,
     spp: u64,
     passes: Option<u32>,
-    wall_seconds: Option<f64>,
+    mis: String,
+    max_depth: u32,
+    sample_ranges: Vec<[u32; 2]>,
 }
 
 impl Origin {
@@ -151,6 +171,10 @@ impl Origin {
             height: m.height,
             spp: m.spp as u64 * m.passes as u64,
             passes: Some(m.passes),
+            // (`make_reference` renders with the default options.)
+            mis: crate::integrators::MisHeuristic::default().name().to_string(),
+            max_depth: None,
+            first_sample: 0,
             wall_seconds: Some(m.wall_seconds),
             noise_floor: Some(noise_floor(m)),
         }
@@ -165,7 +189,12 @@ impl Origin {
             height: r.height,
             spp: r.spp * r.passes.unwrap_or(1) as u64,
             passes: r.passes,
-            wall_seconds: r.wall_seconds,
+            mis: r.mis,
+            max_depth: Some(r.max_depth),
+            first_sample: r.sample_ranges.first().map_or(0, |r| r[0]),
+            // (A render's sidecar times only its last process, if it was
+            // resumed, and a merge's none: the reference's cost is unknown.)
+            wall_seconds: None,
             noise_floor: None,
         }
     }

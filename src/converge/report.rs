@@ -4,7 +4,7 @@
 use super::chart::{chart_svg, svg_to_png, Axis};
 use super::images::{auto_exposure, compose, error_range, false_colour, pixel_errors, tonemap};
 use super::{ConvergeConfig, ConvergeResults};
-use crate::film::{write_atomically, write_json};
+use crate::film::{write_atomically, write_bytes, write_json};
 use anyhow::{Context, Result};
 use image::RgbImage;
 use std::fmt::Write as _;
@@ -54,7 +54,7 @@ pub(super) fn write_outputs(
 
 /// Each output appears whole or not at all (`write_atomically`).
 fn write_text(path: &Path, text: &str) -> Result<()> {
-    write_atomically(path, |tmp| std::fs::write(tmp, text).with_context(|| format!("cannot write {}", path.display())))
+    write_bytes(path, text.as_bytes())
 }
 
 fn write_png(path: &Path, image: &RgbImage) -> Result<()> {

@@ -383,18 +383,19 @@ impl Importer {
     fn camera(&self, label: &str, world: Affine3A, yfov: f32, aspect: Option<f32>) -> Result<Camera, LoadError> {
         let position = world.translation;
         let (forward, up) = (world.transform_vector3a(-Vec3A::Z), world.transform_vector3a(Vec3A::Y));
-        let Some([forward, ..]) = Camera::frame(forward.as_dvec3(), up.as_dvec3()) else {
+        let (forward, up) = (forward.as_dvec3(), up.as_dvec3());
+        if Camera::frame(forward, up).is_none() {
             return Err(self.fail(label, "the camera's transform is degenerate (no view or up direction)"));
-        };
+        }
         let fov = yfov.to_degrees();
         if !(fov.is_finite() && fov > 0.0 && fov < 180.0) {
             return Err(self.fail(label, format!("yfov {yfov} rad is not between 0 and pi")));
         }
         let aspect = aspect.filter(|a| a.is_finite() && *a > 0.0).unwrap_or(DEFAULT_ASPECT);
         let width = ((DEFAULT_HEIGHT as f32 * aspect).round() as u32).clamp(1, 16384);
-        let camera = Camera::new(position, position + forward, up, fov, width, DEFAULT_HEIGHT);
+        let camera = Camera::looking(position, forward, up, fov, width, DEFAULT_HEIGHT);
         // As the JSON loader: light tracing divides by the image's area.
-        if !(camera.image_area().is_normal() && camera.image_area().is_finite()) {
+        if !camera.has_image_area() {
             return Err(self.fail(label, format!("yfov {yfov:e} rad is too small: the image has no area")));
         }
         Ok(camera)

@@ -358,7 +358,8 @@ struct SpectrumValue;
 impl<'de> serde::de::Visitor<'de> for SpectrumValue {
     type Value = serde_json::Value;
     fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
-        f.write_str(SPECTRUM_FORMS)
+        // (serde's message already says "expected".)
+        f.write_str(SPECTRUM_FORMS.trim_start_matches("expected "))
     }
     fn visit_u64<E>(self, x: u64) -> Result<Self::Value, E> {
         Ok(x.into())
@@ -902,7 +903,7 @@ fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
         return Err(ctx.err(&with(&cam_path, "look_at"), "look_at must differ from position and not be parallel to up"));
     }
     let camera = Camera::new(position, look_at, up, c.fov, c.width, c.height);
-    if !(camera.image_area().is_normal() && camera.image_area().is_finite()) {
+    if !camera.has_image_area() {
         return Err(ctx.err(&with(&cam_path, "fov"), format!("fov {:e} is too small: the image has no area", c.fov)));
     }
     let mut b = SceneBuilder::new(camera);

@@ -68,9 +68,6 @@ struct MeshRecord {
     shading: Option<(Vec<[u32; 3]>, Vec<Vec3A>)>,
 }
 
-/// Geometric normal from the winding, normalize((v1 - v0) x (v2 - v0)), and
-/// the area; +z for a zero-area or non-finite triangle.
-#[inline]
 /// Reads a file the loaders name (scene, glTF, buffer, image), refusing
 /// anything but a regular file: a FIFO would hang the loader and /dev/zero
 /// would read until memory runs out.
@@ -82,6 +79,9 @@ fn read_regular_file(path: &std::path::Path) -> std::io::Result<Vec<u8>> {
     }
 }
 
+/// Geometric normal from the winding, normalize((v1 - v0) x (v2 - v0)), and
+/// the area; +z for a zero-area or non-finite triangle.
+#[inline]
 fn normal_and_area(v: &[Vec3A; 3]) -> (Vec3A, f32) {
     let cross = (v[1] - v[0]).cross(v[2] - v[0]);
     let area = 0.5 * cross.length();
