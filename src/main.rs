@@ -52,9 +52,10 @@ enum Command {
     ExportMitsuba(prism::mitsuba::ExportMitsubaArgs),
     /// Regenerate the Jakob-Hanika RGB-to-spectrum coefficient table.
     RgbTable {
-        /// Table resolution per axis.
-        #[arg(long, default_value_t = 32)]
-        res: usize,
+        /// Table resolution per axis (3 to 256: the table holds 9 res^3
+        /// floats).
+        #[arg(long, default_value_t = 32, value_parser = clap::value_parser!(u16).range(3..=256))]
+        res: u16,
         #[arg(long)]
         out: PathBuf,
     },
@@ -222,7 +223,7 @@ fn main() -> ExitCode {
             }
             Ok(())
         }
-        Command::RgbTable { res, out } => rgb_table(res, &out),
+        Command::RgbTable { res, out } => rgb_table(res.into(), &out),
         Command::Reference(args) => reference_command(args),
         Command::Merge { out, parts } => merge_command(&out, &parts),
         Command::Compare { image, reference } => compare_command(&image, &reference),
@@ -275,6 +276,16 @@ fn reference_command(a: ReferenceArgs) -> Result<()> {
 fn compare_command(image: &Path, reference: &Path) -> Result<()> {
     let (w, h, a) = film::read_exr(image)?;
     let (rw, rh, b) = film::read_exr(reference)?;
+    for (path, pixels, width) in [(image, &a, w), (reference, &b, rw)] {
+        let bad = pixels.iter().filter(|p| !p.iter().all(|c| c.is_finite())).count();
+        if let Some(i) = pixels.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+            let (x, y) = (i % width as usize, i / width as usize);
+            bail!(
+                "{}: {bad} pixels are not finite (the first at x {x}, y {y}): no error can be measured",
+                path.display()
+            );
+        }
+    }
     if (w, h) != (rw, rh) {
         bail!("{} is {w}x{h} but {} is {rw}x{rh}", image.display(), reference.display());
     }
@@ -287,8 +298,7 @@ fn compare_command(image: &Path, reference: &Path) -> Result<()> {
 }
 
 fn rgb_table(res: usize, out: &Path) -> Result<()> {
-    let table = prism::spectrum::RgbToSpectrumTable::generate(res);
-    table.write(out).with_context(|| format!("cannot write {}", out.display()))
+    prism::spectrum::RgbToSpectrumTable::generate(res).write(out)
 }
 
 /// What every kind of render shares: the scene, its estimator, the options

@@ -40,12 +40,13 @@
 //! | --height | the scene's  | image height (`$height`)                 |
 //! | --spp    | 64           | samples per pixel (`$spp`)               |
 
+use crate::camera::Camera;
 use crate::film::write_bytes;
 use crate::light::Light;
 use crate::materials::Bsdf;
 use crate::scene::{load_scene, Scene};
 use crate::spectrum::{Spectrum, LAMBDA_MAX, LAMBDA_MIN};
-use anyhow::{bail, Context, Result};
+use anyhow::{anyhow, bail, ensure, Context, Result};
 use glam::Vec3A;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -69,12 +70,22 @@ pub struct ExportMitsubaArgs {
 pub fn command(a: ExportMitsubaArgs) -> Result<()> {
     let mut builder = load_scene(&a.scene)?;
     if let (Some(w), Some(h)) = (a.width, a.height) {
+        Camera::check_resolution(w, h).map_err(|e| anyhow!("--width, --height: {e}"))?;
         builder.set_resolution(w, h);
     } else if a.width.is_some() || a.height.is_some() {
         bail!("--width and --height must be given together");
     }
+    ensure!(a.spp >= 1, "--spp must be at least 1");
+    // The Mitsuba scene is rendered with unbounded depth (roulette ends
+    // paths): a depth cap in the scene would compare unlike estimands.
+    if let Some(d) = builder.defaults.max_depth {
+        bail!(
+            "{}: render.max_depth {d} is not exported (Mitsuba renders unbounded depth): remove it",
+            a.scene.display()
+        );
+    }
     let scene = builder.build();
-    let meshes = export(&scene, &a.dir, a.spp)?;
+    let meshes = export(&scene, &a.dir, a.spp).with_context(|| format!("cannot export {}", a.scene.display()))?;
     eprintln!("wrote {} ({} triangles in {meshes} meshes)", a.dir.join("scene.xml").display(), scene.triangle_count());
     Ok(())
 }
@@ -90,9 +101,8 @@ struct Group {
 }
 
 /// Writes `dir/scene.xml` and `dir/meshes/*.ply`; returns the mesh count.
+/// Everything unsupported is refused before anything is written.
 pub fn export(scene: &Scene, dir: &Path, spp: u32) -> Result<usize> {
-    let mesh_dir = dir.join("meshes");
-    std::fs::create_dir_all(&mesh_dir).with_context(|| format!("cannot create {}", mesh_dir.display()))?;
     for (i, light) in scene.lights.iter().enumerate() {
         match light {
             Light::Area(a) if a.two_sided => {
@@ -121,6 +131,14 @@ pub fn export(scene: &Scene, dir: &Path, spp: u32) -> Result<usize> {
         groups[k].positions.extend(v);
         groups[k].normals.extend(ns.into_iter().flatten());
     }
+    for g in &groups {
+        let material = &scene.materials[g.material as usize];
+        if !matches!(material.bsdf, Bsdf::Diffuse(_)) {
+            bail!("material {}: only diffuse materials are exported", material.name);
+        }
+    }
+    let mesh_dir = dir.join("meshes");
+    std::fs::create_dir_all(&mesh_dir).with_context(|| format!("cannot create {}", mesh_dir.display()))?;
     let cam = &scene.camera;
     let (forward, up, fov_y) = cam.orientation();
     let p = cam.position;
@@ -158,7 +176,7 @@ pub fn export(scene: &Scene, dir: &Path, spp: u32) -> Result<usize> {
     for (k, g) in groups.iter().enumerate() {
         let material = &scene.materials[g.material as usize];
         let Bsdf::Diffuse(d) = &material.bsdf else {
-            bail!("material {}: only diffuse materials are exported", material.name);
+            unreachable!("checked above");
         };
         let file = format!("meshes/{k:03}.ply");
         write_ply(&dir.join(&file), &g.positions, &g.normals)?;

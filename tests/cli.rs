@@ -225,3 +225,49 @@ fn grown_parts_and_ignored_options_merge() {
     assert_eq!(std::fs::read(d.join("all.exr")).unwrap(), std::fs::read(d.join("one.exr")).unwrap());
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// The smaller subcommands refuse what they cannot do before writing
+/// anything (from an audit): `export-mitsuba` of a non-diffuse scene used
+/// to write some meshes first (over an earlier export's), and took a zero
+/// width, zero spp and a scene depth cap it does not export; `compare` of
+/// an image with NaN printed NaN with exit 0; `rgb-table --res 2` panicked.
+#[test]
+fn small_subcommands_refuse_before_writing() {
+    let d = temp_dir("subcommands");
+    let path = |name: &str| d.join(name).display().to_string();
+    let fails_with = |args: &[&str], words: &str| {
+        let o = prism(args);
+        assert!(!o.status.success() && stderr(&o).contains(words), "{args:?}: {}", stderr(&o));
+    };
+    let export = path("export");
+    let ok = prism(&["export-mitsuba", "scenes/cornell-box.json", &export, "--width", "8", "--height", "8"]);
+    assert!(ok.status.success(), "{}", stderr(&ok));
+    let mesh = std::fs::read(d.join("export/meshes/000.ply")).unwrap();
+    fails_with(&["export-mitsuba", "scenes/cornell-glossy.json", &export], "only diffuse materials are exported");
+    assert_eq!(std::fs::read(d.join("export/meshes/000.ply")).unwrap(), mesh, "a refused export replaced a mesh");
+    let fresh = path("fresh");
+    fails_with(&["export-mitsuba", "scenes/cornell-glossy.json", &fresh], "cannot export scenes/cornell-glossy.json");
+    assert!(!d.join("fresh").exists(), "a refused export created its directory");
+    fails_with(&["export-mitsuba", "scenes/cornell-box.json", &fresh, "--width", "0", "--height", "8"], "--width");
+    fails_with(&["export-mitsuba", "scenes/cornell-box.json", &fresh, "--spp", "0"], "--spp must be at least 1");
+    let capped = std::fs::read_to_string("scenes/cornell-box.json").unwrap().replacen(
+        "\"render\": {",
+        "\"render\": {\"max_depth\": 2, ",
+        1,
+    );
+    let capped = write(&d, "capped.json", &capped);
+    fails_with(&["export-mitsuba", &capped, &fresh], "render.max_depth 2 is not exported");
+    assert!(!d.join("fresh").exists());
+
+    let image = |name: &str, v: f32| {
+        prism::film::write_exr(&d.join(name), 2, 1, &[[0.5; 3], [v; 3]]).unwrap();
+        path(name)
+    };
+    let (one, nan) = (image("one.exr", 1.0), image("nan.exr", f32::NAN));
+    fails_with(&["compare", &nan, &one], "nan.exr: 1 pixels are not finite (the first at x 1, y 0)");
+    fails_with(&["compare", &one, &image("inf.exr", f32::INFINITY)], "inf.exr: 1 pixels are not finite");
+    assert!(prism(&["compare", &one, &one]).status.success());
+    fails_with(&["rgb-table", "--res", "2", "--out", &path("t.bin")], "2 is not in 3..=256");
+    assert!(!d.join("t.bin").exists());
+    let _ = std::fs::remove_dir_all(&d);
+}

@@ -160,7 +160,10 @@ done
 
 # --- 5. reference and table
 REF="$OUT/reference.exr"
-if ! "$PY" -c "import json,sys; m=json.load(open('$OUT/reference.json')); sys.exit(not (m['spp']*m['passes']==$REF_SPP and m['width']==$RES and m['scene']=='$SCENE'))" 2>/dev/null; then
+# Reused only if it matches the run and is newer than the scene file and
+# the prism binary (an edited scene or a changed engine needs a new one).
+if ! [ "$OUT/reference.json" -nt "$SCENE" ] || ! [ "$OUT/reference.json" -nt "$PRISM" ] ||
+    ! "$PY" -c "import json,sys; m=json.load(open('$OUT/reference.json')); sys.exit(not (m['spp']*m['passes']==$REF_SPP and m['width']==$RES and m['scene']=='$SCENE'))" 2>/dev/null; then
     echo "== reference: prism path, $REF_SPP spp ($REF_PASSES passes, seeds 1000.., independent of the runs' seeds)"
     "$PRISM" reference "$SCENE" --integrator path --spp $((REF_SPP / REF_PASSES)) --passes $REF_PASSES \
         --width "$RES" --height "$RES" --threads "$THREADS" --out "$REF"
