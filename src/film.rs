@@ -251,7 +251,8 @@ pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<[f32; 3]>)> {
             px[pos.y() * *w + pos.x()] = [r, g, b];
         },
     )
-    .with_context(|| format!("cannot read {}", path.display()))?;
+    // (Its message only: the exr error repeats its source's in Display.)
+    .map_err(|e| anyhow::anyhow!("cannot read {}: {e}", path.display()))?;
     let size = img.layer_data.size;
     let (_, px) = img.layer_data.channel_data.pixels;
     Ok((size.width() as u32, size.height() as u32, px))
