@@ -393,7 +393,14 @@ fn a_rendered_reference_is_accepted() {
     assert!(!correlated(&r), "{:?}", r.notes);
 
     render(&["--integrator", "path", "--spp", "4", "--seed", "11", "--out", &path("same.exr")]);
-    assert!(correlated(&measure("same.exr").0), "a reference of the run's own samples was not flagged");
+    let (r, _) = measure("same.exr");
+    assert!(correlated(&r), "a reference of the run's own samples was not flagged");
+    assert!(r.reference.noise_floor_method.as_deref().is_some_and(|m| m.starts_with("same estimator")));
+    // Another depth is another estimand: noted, and not the same estimator.
+    render(&["--integrator", "path", "--max-depth", "2", "--spp", "4", "--seed", "5", "--out", &path("d2.exr")]);
+    let (r, _) = measure("d2.exr");
+    assert!(r.notes.iter().any(|n| n.contains("max depth 2")), "{:?}", r.notes);
+    assert_eq!(r.reference.noise_floor, None);
     render(&["--integrator", "path", "--sample-range", "4..6", "--seed", "11", "--out", &path("p0.exr")]);
     render(&["--integrator", "path", "--sample-range", "6..8", "--seed", "11", "--out", &path("p1.exr")]);
     let m = prism(&["merge", &path("merged.exr"), &path("p0.exr"), &path("p1.exr")]);

@@ -438,6 +438,9 @@ pub struct ReferenceInfo {
     /// was recorded).
     #[serde(default)]
     pub mis: Option<String>,
+    /// Its max depth, where known (`prism reference` does not record it).
+    #[serde(default)]
+    pub max_depth: Option<u32>,
     pub wall_seconds: Option<f64>,
     /// Expected relMSE of the reference itself: the floor under every
     /// measured curve (see `noise_floor_method`).
@@ -577,8 +580,12 @@ pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
     }
 
     let mut info = info;
-    let same =
-        results.iter().find(|x| Some(&x.integrator) == info.integrator.as_ref() && Some(&x.mis) == info.mis.as_ref());
+    // The same estimator: integrator, MIS heuristic and (where known) depth.
+    let same = results.iter().find(|x| {
+        Some(&x.integrator) == info.integrator.as_ref()
+            && Some(&x.mis) == info.mis.as_ref()
+            && info.max_depth.is_none_or(|d| d == max_depth)
+    });
     if let (Some(x), Some(n_ref)) = (same, info.spp) {
         // m = V/n + V/N at the last checkpoint (independent seeds), so V/N = m / (N/n + 1).
         info.noise_floor = Some(x.rel_mse / (n_ref as f64 / x.spp as f64 + 1.0));

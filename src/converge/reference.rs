@@ -63,7 +63,9 @@ pub(super) fn obtain_reference(
                 out.display()
             );
             write_reference(out, &image, &meta)?;
-            (image, Some(Origin::of_reference(&meta)), out.clone(), true)
+            // (Rendered with this run's max depth.)
+            let origin = Origin { max_depth: Some(max_depth), ..Origin::of_reference(&meta) };
+            (image, Some(origin), out.clone(), true)
         }
     };
     if let Some(m) = &origin {
@@ -115,6 +117,7 @@ pub(super) fn obtain_reference(
         passes: origin.as_ref().and_then(|m| m.passes),
         seed: origin.as_ref().map(|m| m.seed),
         mis: origin.as_ref().map(|m| m.mis.clone()),
+        max_depth: origin.as_ref().and_then(|m| m.max_depth),
         wall_seconds: origin.as_ref().and_then(|m| m.wall_seconds),
         noise_floor,
         noise_floor_method: noise_floor.map(|_| "block errors".to_string()),
