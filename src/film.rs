@@ -172,6 +172,23 @@ pub fn check_writable(path: &Path) -> Result<()> {
     Ok(())
 }
 
+/// Refuses to write the image `out` beside an existing `out.state` (the
+/// sums of a part or a merge, which `prism merge` reads in place of the
+/// image): the new image would stand beside a stale state. `how` names the
+/// command's other ways out.
+pub fn check_no_stale_state(out: &Path, how: &str) -> Result<()> {
+    let state = out.with_extension("state");
+    if state.exists() {
+        bail!(
+            "{} holds the samples of a part or a merge, and this command would leave it stale beside the new {} \
+             for `prism merge`: remove it, choose another output{how}",
+            state.display(),
+            out.display()
+        );
+    }
+    Ok(())
+}
+
 /// Fails unless `path` names an .exr file: `flag` is the option that gave it.
 pub fn ensure_exr(flag: &str, path: &Path) -> Result<()> {
     if path.extension().and_then(|e| e.to_str()) != Some("exr") {

@@ -3,7 +3,7 @@
 use anyhow::{anyhow, bail, ensure, Context, Result};
 use clap::{Parser, Subcommand};
 use prism::camera::Camera;
-use prism::film::{self, check_outputs, check_writable, ensure_exr, DroppedSamples, Film};
+use prism::film::{self, check_no_stale_state, check_outputs, check_writable, ensure_exr, DroppedSamples, Film};
 use prism::integrators::{self, Integrator, IntegratorOptions, MisHeuristic, INTEGRATORS};
 use prism::render::{
     check_threads, render_chunked, render_with_strategies, RenderOptions, RenderStats, StrategyImages,
@@ -250,6 +250,7 @@ fn reference_command(a: ReferenceArgs) -> Result<()> {
     builder.set_resolution(a.width, a.height);
     let integrator = integrators::create(&a.integrator, &IntegratorOptions::default()).map_err(anyhow::Error::msg)?;
     ensure_exr("--out", &a.out)?;
+    check_no_stale_state(&a.out, "")?;
     check_new_outputs(
         &[("the scene", &a.scene)],
         &[("--out", &a.out), ("its sidecar", &a.out.with_extension("json"))],
@@ -347,15 +348,8 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
         builder.set_resolution(w, h);
     }
     ensure_exr("--out", &a.out)?;
-    let state = a.out.with_extension("state");
-    if !writes_state(a) && state.exists() {
-        bail!(
-            "{} holds the samples of a part or a merge, and this render (neither --sample-range nor --resume) \
-             would leave it stale beside the new {} for `prism merge`: remove it, choose another --out, or render \
-             the part with --sample-range A..B",
-            state.display(),
-            a.out.display()
-        );
+    if !writes_state(a) {
+        check_no_stale_state(&a.out, ", or render the part with --sample-range A..B")?;
     }
     let outputs = render_outputs(a);
     let outputs: Vec<(&str, &Path)> = outputs.iter().map(|(r, p)| (*r, p.as_path())).collect();

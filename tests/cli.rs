@@ -268,6 +268,25 @@ fn small_subcommands_refuse_before_writing() {
     fails_with(&["compare", &one, &image("inf.exr", f32::INFINITY)], "inf.exr: 1 pixels are not finite");
     assert!(prism(&["compare", &one, &one]).status.success());
     fails_with(&["rgb-table", "--res", "2", "--out", &path("t.bin")], "2 is not in 3..=256");
+    // A reference image beside a part's state would leave it stale.
+    std::fs::write(d.join("r.state"), b"a part").unwrap();
+    let out = path("r.exr");
+    let reference = [
+        "reference",
+        "scenes/white-room.json",
+        "--spp",
+        "1",
+        "--passes",
+        "2",
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--out",
+        &out,
+    ];
+    fails_with(&reference, "r.state holds the samples of a part or a merge");
+    assert!(!d.join("r.exr").exists());
     assert!(!d.join("t.bin").exists());
     let _ = std::fs::remove_dir_all(&d);
 }

@@ -71,7 +71,7 @@
 //! | --save-exr               | off            | also write each final image as `DIR/<label>.exr`    |
 
 use crate::camera::Camera;
-use crate::film::{check_outputs, check_writable, ensure_exr, write_exr, DroppedSamples, Film};
+use crate::film::{check_no_stale_state, check_outputs, check_writable, ensure_exr, write_exr, DroppedSamples, Film};
 use crate::integrators::{self, IntegratorOptions, MisHeuristic, INTEGRATORS};
 use crate::render::{render, RenderOptions};
 use crate::scene::{load_scene, Scene};
@@ -523,6 +523,7 @@ pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
     );
     if let ReferenceSource::Render { integrator, spp, passes, out } = &cfg.reference {
         ensure_exr("--reference-out", out)?;
+        check_no_stale_state(out, "")?;
         ensure!(*passes >= 2, "--reference-passes must be at least 2");
         ensure!(*spp >= 1, "--reference-spp must be at least 1");
         integrators::create(integrator, &IntegratorOptions::default()).map_err(anyhow::Error::msg)?;
