@@ -145,12 +145,19 @@ impl Mesh {
         }
     }
 
-    /// The first triangle whose normal cannot be computed in f32: the
-    /// squared length of the cross product of its edges (what its normal
-    /// and area, and `accel::is_degenerate`, take) overflows, for edges
-    /// beyond ~4e9. Such a triangle would drop out of the BVH unseen.
-    pub fn oversized_triangle(&self) -> Option<usize> {
-        self.triangles().position(|v| !(v[1] - v[0]).cross(v[2] - v[0]).length_squared().is_finite())
+    /// Fails, naming the first, if a triangle's normal cannot be computed
+    /// in f32: the squared length of the cross product of its edges (what
+    /// its normal and area, and `accel::is_degenerate`, take) overflows,
+    /// for edges beyond ~4e9. Such a triangle would drop out of the BVH
+    /// unseen. (The loaders' check, with their own error positions.)
+    pub fn check_f32_extent(&self) -> Result<(), String> {
+        match self.triangles().position(|v| !(v[1] - v[0]).cross(v[2] - v[0]).length_squared().is_finite()) {
+            None => Ok(()),
+            Some(t) => Err(format!(
+                "triangle {t} is too large for f32 arithmetic (edges beyond ~4e9 units: the cross product of two \
+                 edges, its normal and area, overflow); scale the scene down"
+            )),
+        }
     }
 
     pub fn triangles(&self) -> impl Iterator<Item = [Vec3A; 3]> + '_ {

@@ -149,7 +149,8 @@ struct Origin {
 }
 
 /// The fields of a render or merge sidecar that `Origin` needs (the rest
-/// is ignored).
+/// is ignored; `render_state::Identity`, which holds most of them, refuses
+/// unknown fields, and a sidecar has many).
 #[derive(Deserialize)]
 struct RenderSidecar {
     scene: String,

@@ -527,9 +527,7 @@ impl Importer {
             if m.positions.iter().any(|p| !p.is_finite()) {
                 return Err(self.fail(&pwhat, "vertex positions are not finite"));
             }
-            if let Some(t) = m.oversized_triangle() {
-                return Err(self.fail(&pwhat, super::json::oversized_message(t)));
-            }
+            m.check_f32_extent().map_err(|e| self.fail(&pwhat, e))?;
             let material = self.material_slot(&prim.material())?;
             content.meshes.push(ImportedMesh { name: pwhat, mesh: m, material });
         }

@@ -871,14 +871,6 @@ fn include_gltf(
     })
 }
 
-/// The error for `Mesh::oversized_triangle` (shared with the glTF loader).
-pub(super) fn oversized_message(t: usize) -> String {
-    format!(
-        "triangle {t} is too large for f32 arithmetic (edges beyond ~4e9 units: the cross product of two edges, its \
-         normal and area, overflow); scale the scene down"
-    )
-}
-
 /// serde_json appends " at line L column C"; we print the position up front.
 fn strip_position(msg: &str) -> String {
     match msg.rfind(" at line ") {
@@ -933,9 +925,7 @@ fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
         if mesh.positions.iter().any(|p| !p.is_finite()) {
             return Err(ctx.err(&at, "vertex positions overflow the f32 range"));
         }
-        if let Some(t) = mesh.oversized_triangle() {
-            return Err(ctx.err(&at, oversized_message(t)));
-        }
+        mesh.check_f32_extent().map_err(|e| ctx.err(&at, e))?;
         let emission = match &o.emission {
             Some(e) => Some((ctx.spectrum(&with(&path, "emission"), e, Use::Emission)?, o.two_sided)),
             None => None,
