@@ -341,59 +341,88 @@ fn render_tile(
         rays: 0,
         strategies: ws.strategies.is_some().then(TileStrategies::default),
     };
+    let image = UVec2::new(width, scene.camera.height);
     crate::scene::take_ray_count();
     for y in 0..size.y {
         for x in 0..size.x {
             let pixel = origin + UVec2::new(x, y);
-            let pixel_index = (pixel.y * width + pixel.x) as u64;
-            let sum = &mut out.sums[(y * size.x + x) as usize];
+            let local = (y * size.x + x) as usize;
             for s in samples.clone() {
-                let mut sampler = Sampler::new(seed, pixel_index, s as u64);
+                let mut sampler = Sampler::new(seed, (pixel.y * width + pixel.x) as u64, s as u64);
                 let mut lambda = SampledWavelengths::sample_visible(sampler.get1d());
                 ws.splats.clear();
                 if let Some(records) = ws.strategies.as_mut() {
                     records.clear();
                 }
                 let l = integrator.sample(scene, pixel, &mut sampler, &mut lambda, ws);
-                if let Some(rgb) = out.dropped.admit(l, &lambda) {
-                    if !add_fixed(sum, to_fixed(rgb)) {
-                        out.dropped.infinite += 1;
-                    }
-                }
-                for sp in &ws.splats {
-                    if let Some(rgb) = out.dropped.admit(sp.l, &lambda) {
-                        let p = sp.raster.as_uvec2().min(UVec2::new(width - 1, scene.camera.height - 1));
-                        out.splats.push((p.y * width + p.x, rgb));
-                    }
-                }
+                out.add_sample(local, l, &ws.splats, &lambda, image);
                 if let (Some(tile), Some(records)) = (out.strategies.as_mut(), ws.strategies.as_ref()) {
-                    let local = (y * size.x + x) as usize;
-                    let n = (size.x * size.y) as usize;
-                    for r in records {
-                        let (Some(w), Some(u)) =
-                            (tile.dropped.admit(r.weighted, &lambda), tile.dropped.admit(r.unweighted, &lambda))
-                        else {
-                            continue;
-                        };
-                        let rgb = [w, u].map(|c| c.to_array().map(f64::from));
-                        if r.t == 1 {
-                            let p = r.raster.as_uvec2().min(UVec2::new(width - 1, scene.camera.height - 1));
-                            tile.splats.push((p.y * width + p.x, r.s, r.t, rgb));
-                        } else {
-                            let sums = tile.pixels.entry((r.s, r.t)).or_insert_with(|| vec![[[0.0; 3]; 2]; n]);
-                            for k in 0..2 {
-                                for c in 0..3 {
-                                    sums[local][k][c] += rgb[k][c];
-                                }
-                            }
-                        }
-                    }
+                    tile.add(records, local, (size.x * size.y) as usize, &lambda, image);
                 }
             }
         }
     }
     out.rays = crate::scene::take_ray_count();
     out
+}
+
+/// The index of the pixel of an `image`-sized film that holds `raster`
+/// (clamped: a point on the far edge belongs to the last pixel).
+fn splat_pixel(raster: Vec2, image: UVec2) -> u32 {
+    let p = raster.as_uvec2().min(image - 1);
+    p.y * image.x + p.x
+}
+
+impl TileOutput {
+    /// One camera sample of the tile's pixel `local` (value `l`) and the
+    /// splats it made, converted to colour with the sample's final
+    /// wavelengths; what the film cannot take is counted, not added.
+    fn add_sample(
+        &mut self,
+        local: usize,
+        l: SampledSpectrum,
+        splats: &[Splat],
+        lambda: &SampledWavelengths,
+        image: UVec2,
+    ) {
+        if let Some(rgb) = self.dropped.admit(l, lambda) {
+            if !add_fixed(&mut self.sums[local], to_fixed(rgb)) {
+                self.dropped.infinite += 1;
+            }
+        }
+        for sp in splats {
+            if let Some(rgb) = self.dropped.admit(sp.l, lambda) {
+                self.splats.push((splat_pixel(sp.raster, image), rgb));
+            }
+        }
+    }
+}
+
+impl TileStrategies {
+    /// A sample's strategy records: t >= 2 ones are summed into the tile's
+    /// pixel `local` (of `n`), t = 1 ones kept as splats.
+    fn add(&mut self, records: &[StrategyRecord], local: usize, n: usize, lambda: &SampledWavelengths, image: UVec2) {
+        for r in records {
+            let (Some(w), Some(u)) = (self.dropped.admit(r.weighted, lambda), self.dropped.admit(r.unweighted, lambda))
+            else {
+                continue;
+            };
+            let rgb = [w, u].map(|c| c.to_array().map(f64::from));
+            if r.t == 1 {
+                self.splats.push((splat_pixel(r.raster, image), r.s, r.t, rgb));
+            } else {
+                let sums = self.pixels.entry((r.s, r.t)).or_insert_with(|| vec![[[0.0; 3]; 2]; n]);
+                add_pair(&mut sums[local], &rgb);
+            }
+        }
+    }
+}
+
+/// `sum += v` for a [weighted, unweighted] pair of colours.
+fn add_pair(sum: &mut [[f64; 3]; 2], v: &[[f64; 3]; 2]) {
+    for (s, v) in sum.iter_mut().flatten().zip(v.iter().flatten()) {
+        *s += v;
+    }
 }
 
 fn merge_tile_strategies(images: &mut StrategyImages, out: &TileOutput, tile: TileStrategies) {
@@ -403,24 +432,23 @@ fn merge_tile_strategies(images: &mut StrategyImages, out: &TileOutput, tile: Ti
         for y in 0..out.size.y {
             for x in 0..out.size.x {
                 let i = ((out.origin.y + y) * width + out.origin.x + x) as usize;
-                let v = sums[(y * out.size.x + x) as usize];
-                for k in 0..2 {
-                    for c in 0..3 {
-                        buffers[k][i][c] += v[k][c];
-                    }
-                }
+                add_to_buffers(buffers, i, &sums[(y * out.size.x + x) as usize]);
             }
         }
     }
     for (i, s, t, v) in tile.splats {
-        let buffers = images.buffers(s, t);
-        for k in 0..2 {
-            for c in 0..3 {
-                buffers[k][i as usize][c] += v[k][c];
-            }
-        }
+        add_to_buffers(images.buffers(s, t), i as usize, &v);
     }
     images.dropped.merge(&tile.dropped);
+}
+
+/// Adds a [weighted, unweighted] pair to pixel `i` of a strategy's buffers.
+fn add_to_buffers(buffers: &mut [Vec<[f64; 3]>; 2], i: usize, v: &[[f64; 3]; 2]) {
+    for (buffer, v) in buffers.iter_mut().zip(v) {
+        for (s, v) in buffer[i].iter_mut().zip(v) {
+            *s += v;
+        }
+    }
 }
 
 /// Adds a tile's sums (`spp` camera samples per pixel) and splats to the
