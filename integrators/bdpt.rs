@@ -138,77 +138,104 @@ fn connect(
     if t > 1 && s != 0 && camera[t - 1].is_infinite() {
         return None;
     }
-    let c = if s == 0 {
-        let (pt, pt_minus) = (&camera[t - 1], &camera[t - 2]);
-        let l = pt.beta * pt.le(scene, pt_minus, lambda);
-        if l.is_black() {
-            return None;
-        }
-        let ends = Ends::new(light, camera, None, s, t);
-        Connection { l, splat: None, ends, rev: Reverse::emitter(scene, pt, pt_minus) }
-    } else if t == 1 {
-        let qs = &light[s - 1];
-        let c = connect_to_camera(scene, qs, lambda)?;
-        let sp = c.camera.scatter(scene, -c.segment.w, lambda, TransportMode::Radiance);
-        let rev = Reverse::connection(qs, &c.scatter, &c.camera, &sp, &c.segment);
-        Connection { l: c.splat.l, splat: Some(c.splat.raster), ends: Ends::new(light, camera, None, s, t), rev }
-    } else if s == 1 {
-        let pt = &camera[t - 1];
-        let (u_light, u) = (sampler.get1d(), sampler.get2d());
-        if !pt.is_connectible(scene) {
-            return None;
-        }
-        let (i, pmf) = scene.sample_light(u_light)?;
-        let source = &scene.lights[i as usize];
-        let ls = source.sample_li(pt.p(), u, lambda)?;
-        if ls.pdf_w <= 0.0 || ls.pdf_w.is_nan() || ls.l.is_black() {
-            return None;
-        }
-        let beta = ls.l / (ls.pdf_w * pmf);
-        let mut q = if source.is_infinite() {
-            Vertex::environment(i, ls.p, -ls.wi, beta, 0.0)
-        } else {
-            Vertex::light(i, ls.point(), beta, 0.0)
-        };
-        q.pdf_fwd = q.pdf_light_origin(scene, pt);
-        init_mis(scene, std::slice::from_mut(&mut q), Subpath::Light, mis);
-        let g = q.segment_to(pt)?;
-        let sp = pt.scatter(scene, -g.w, lambda, TransportMode::Radiance);
-        let l = pt.beta * sp.f * q.beta * g.w.dot(pt.si.frame.n).abs();
-        if l.is_black() {
-            return None;
-        }
-        let visible = if source.is_infinite() {
-            scene.escapes(pt.si.point(), ls.wi)
-        } else {
-            scene.unoccluded(pt.si.point(), ls.point())
-        };
-        if !visible {
-            return None;
-        }
-        let sq = q.scatter(scene, g.w, lambda, TransportMode::Importance);
-        let rev = Reverse::connection(&q, &sq, pt, &sp, &g);
-        Connection { l, splat: None, ends: Ends::new(light, camera, Some(&q), s, t), rev }
-    } else {
-        let (qs, pt) = (&light[s - 1], &camera[t - 1]);
-        if !qs.is_connectible(scene) || !pt.is_connectible(scene) {
-            return None;
-        }
-        let g = qs.segment_to(pt)?;
-        let sp = pt.scatter(scene, -g.w, lambda, TransportMode::Radiance);
-        if sp.f.is_black() {
-            return None;
-        }
-        let sq = qs.scatter(scene, g.w, lambda, TransportMode::Importance);
-        let geometry = qs.si.frame.n.dot(g.w).abs() * pt.si.frame.n.dot(g.w).abs() * g.inv_d2;
-        let l = qs.beta * sq.f * sp.f * pt.beta * geometry;
-        if l.is_black() || !scene.unoccluded(qs.si.point(), pt.si.point()) {
-            return None;
-        }
-        let rev = Reverse::connection(qs, &sq, pt, &sp, &g);
-        Connection { l, splat: None, ends: Ends::new(light, camera, None, s, t), rev }
+    let c = match (s, t) {
+        (0, _) => emitter_hit(scene, &camera[..t], lambda).map(|(l, rev)| (l, None, rev, None)),
+        (_, 1) => light_tracing(scene, &light[s - 1], lambda).map(|(l, raster, rev)| (l, Some(raster), rev, None)),
+        (1, _) => next_event(scene, &camera[t - 1], mis, sampler, lambda).map(|(l, rev, q)| (l, None, rev, Some(q))),
+        _ => vertex_connection(scene, &light[s - 1], &camera[t - 1], lambda).map(|(l, rev)| (l, None, rev, None)),
     };
-    (!c.l.is_black()).then_some(c)
+    let (l, splat, rev, fresh_light) = c?;
+    let ends = Ends::new(light, camera, fresh_light.as_ref(), s, t);
+    (!l.is_black()).then_some(Connection { l, splat, ends, rev })
+}
+
+/// s = 0: the last vertex z_{t-1} of `camera` (z_0 .. z_{t-1}) is on an emitter.
+fn emitter_hit(scene: &Scene, camera: &[Vertex], lambda: &SampledWavelengths) -> Option<(SampledSpectrum, Reverse)> {
+    let [.., pt_minus, pt] = camera else {
+        return None;
+    };
+    let l = pt.beta * pt.le(scene, pt_minus, lambda);
+    (!l.is_black()).then(|| (l, Reverse::emitter(scene, pt, pt_minus)))
+}
+
+/// t = 1: the light subpath's vertex y_{s-1} joined to the pinhole, and the
+/// raster position it splats to.
+fn light_tracing(scene: &Scene, qs: &Vertex, lambda: &SampledWavelengths) -> Option<(SampledSpectrum, Vec2, Reverse)> {
+    let c = connect_to_camera(scene, qs, lambda)?;
+    let sp = c.camera.scatter(scene, -c.segment.w, lambda, TransportMode::Radiance);
+    let rev = Reverse::connection(qs, &c.scatter, &c.camera, &sp, &c.segment);
+    Some((c.splat.l, c.splat.raster, rev))
+}
+
+/// s = 1: a fresh light sample joined to z_{t-1} (next-event estimation);
+/// also returns that light vertex, which replaces y_0 in the MIS weight.
+fn next_event(
+    scene: &Scene,
+    pt: &Vertex,
+    mis: MisHeuristic,
+    sampler: &mut Sampler,
+    lambda: &SampledWavelengths,
+) -> Option<(SampledSpectrum, Reverse, Vertex)> {
+    let (u_light, u) = (sampler.get1d(), sampler.get2d());
+    if !pt.is_connectible(scene) {
+        return None;
+    }
+    let (i, pmf) = scene.sample_light(u_light)?;
+    let source = &scene.lights[i as usize];
+    let ls = source.sample_li(pt.p(), u, lambda)?;
+    if ls.pdf_w <= 0.0 || ls.pdf_w.is_nan() || ls.l.is_black() {
+        return None;
+    }
+    let beta = ls.l / (ls.pdf_w * pmf);
+    let mut q = if source.is_infinite() {
+        Vertex::environment(i, ls.p, -ls.wi, beta, 0.0)
+    } else {
+        Vertex::light(i, ls.point(), beta, 0.0)
+    };
+    q.pdf_fwd = q.pdf_light_origin(scene, pt);
+    init_mis(scene, std::slice::from_mut(&mut q), Subpath::Light, mis);
+    let g = q.segment_to(pt)?;
+    let sp = pt.scatter(scene, -g.w, lambda, TransportMode::Radiance);
+    let l = pt.beta * sp.f * q.beta * g.w.dot(pt.si.frame.n).abs();
+    if l.is_black() {
+        return None;
+    }
+    let visible = if source.is_infinite() {
+        scene.escapes(pt.si.point(), ls.wi)
+    } else {
+        scene.unoccluded(pt.si.point(), ls.point())
+    };
+    if !visible {
+        return None;
+    }
+    let sq = q.scatter(scene, g.w, lambda, TransportMode::Importance);
+    let rev = Reverse::connection(&q, &sq, pt, &sp, &g);
+    Some((l, rev, q))
+}
+
+/// s, t >= 2: y_{s-1} joined to z_{t-1} by a shadow ray, with
+/// G = |cos||cos| / d^2 (shading normals).
+fn vertex_connection(
+    scene: &Scene,
+    qs: &Vertex,
+    pt: &Vertex,
+    lambda: &SampledWavelengths,
+) -> Option<(SampledSpectrum, Reverse)> {
+    if !qs.is_connectible(scene) || !pt.is_connectible(scene) {
+        return None;
+    }
+    let g = qs.segment_to(pt)?;
+    let sp = pt.scatter(scene, -g.w, lambda, TransportMode::Radiance);
+    if sp.f.is_black() {
+        return None;
+    }
+    let sq = qs.scatter(scene, g.w, lambda, TransportMode::Importance);
+    let geometry = qs.si.frame.n.dot(g.w).abs() * pt.si.frame.n.dot(g.w).abs() * g.inv_d2;
+    let l = qs.beta * sq.f * sp.f * pt.beta * geometry;
+    if l.is_black() || !scene.unoccluded(qs.si.point(), pt.si.point()) {
+        return None;
+    }
+    Some((l, Reverse::connection(qs, &sq, pt, &sp, &g)))
 }
 
 /// Which subpath a vertex array is.
