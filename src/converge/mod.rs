@@ -511,23 +511,7 @@ pub fn errors(image: &[[f32; 3]], reference: &[[f32; 3]]) -> (f64, f64, f64) {
 /// Renders every integrator progressively, writes all outputs into
 /// `cfg.out`, and returns what they show.
 pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
-    ensure!(cfg.time.is_some() || cfg.max_spp.is_some(), "give a budget: --time SECONDS and/or --spp N");
-    if let Some(t) = cfg.time {
-        ensure!(t.is_finite() && t > 0.0, "--time must be a positive number of seconds");
-    }
-    ensure!(cfg.max_spp != Some(0), "--spp must be at least 1");
-    // 2^exposure must be a normal f32: 0 or infinity would make black panels.
-    ensure!(
-        cfg.exposure.is_none_or(|e| 2f32.powf(e).is_normal()),
-        "--exposure must be a number of stops in [-126, 127]"
-    );
-    if let ReferenceSource::Render { integrator, spp, passes, out } = &cfg.reference {
-        ensure_exr("--reference-out", out)?;
-        check_no_stale_state(out, "")?;
-        ensure!(*passes >= 2, "--reference-passes must be at least 2");
-        ensure!(*spp >= 1, "--reference-spp must be at least 1");
-        integrators::create(integrator, &IntegratorOptions::default()).map_err(anyhow::Error::msg)?;
-    }
+    check_config(cfg)?;
     check_converge_outputs(cfg)?;
     let mut builder = load_scene(&cfg.scene)?;
     if let Some((w, h)) = cfg.resolution {
@@ -563,16 +547,7 @@ pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
             eprintln!("warning: {}: {warn}", spec.label);
         }
         let (result, image) = converge_one(cfg, &scene, spec, integrator.as_ref(), seed, &reference, warnings)?;
-        if result.dropped.total() > 0 {
-            notes.push(format!(
-                "{}: dropped {} samples ({} NaN, {} infinite, {} negative)",
-                spec.label,
-                result.dropped.total(),
-                result.dropped.nan,
-                result.dropped.infinite,
-                result.dropped.negative
-            ));
-        }
+        notes.extend(dropped_note(&result));
         if cfg.save_exr {
             write_exr(&cfg.out.join(format!("{}.exr", spec.file_stem())), w, h, &image)?;
         }
@@ -580,39 +555,8 @@ pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
         finals.push(image);
     }
 
-    let mut info = info;
-    // The same estimator: integrator, MIS heuristic and (where known) depth.
-    let same = results.iter().find(|x| {
-        Some(&x.integrator) == info.integrator.as_ref()
-            && Some(&x.mis) == info.mis.as_ref()
-            && info.max_depth.is_none_or(|d| d == max_depth)
-    });
-    if let (Some(x), Some(n_ref)) = (same, info.spp) {
-        // m = V/n + V/N at the last checkpoint (independent seeds), so V/N = m / (N/n + 1).
-        info.noise_floor = Some(x.rel_mse / (n_ref as f64 / x.spp as f64 + 1.0));
-        info.noise_floor_method = Some(format!("same estimator ({})", x.label));
-    }
-    for x in &results {
-        if x.efficiency.is_nan() {
-            notes.push(format!(
-                "{}: {:.3} {} is below {} s, too short to measure (the CPU clock ticks every 10 ms): not \
-                 ranked; give a larger --time or --spp",
-                x.label,
-                x.seconds,
-                cfg.clock.unit(),
-                cfg.clock.min_seconds()
-            ));
-        }
-        if let Some(floor) = info.noise_floor.filter(|&f| f > 0.1 * x.rel_mse) {
-            notes.push(format!(
-                "{}: the reference's own noise (relMSE ~{floor:.2e}) is {:.0} % of the measured {:.2e}: its \
-                 efficiency ratios are pulled towards 1; render a reference with more samples",
-                x.label,
-                100.0 * floor / x.rel_mse,
-                x.rel_mse
-            ));
-        }
-    }
+    let info = with_noise_floor(info, &results, max_depth);
+    notes.extend(results.iter().flat_map(|x| result_notes(cfg, x, &info)));
     let scene_comment = std::fs::read_to_string(&cfg.scene)
         .ok()
         .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
@@ -638,6 +582,85 @@ pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
     };
     write_outputs(cfg, &out, &reference, &finals)?;
     Ok(out)
+}
+
+/// The command line's own checks, before the scene is loaded.
+fn check_config(cfg: &ConvergeConfig) -> Result<()> {
+    ensure!(cfg.time.is_some() || cfg.max_spp.is_some(), "give a budget: --time SECONDS and/or --spp N");
+    if let Some(t) = cfg.time {
+        ensure!(t.is_finite() && t > 0.0, "--time must be a positive number of seconds");
+    }
+    ensure!(cfg.max_spp != Some(0), "--spp must be at least 1");
+    // 2^exposure must be a normal f32: 0 or infinity would make black panels.
+    ensure!(
+        cfg.exposure.is_none_or(|e| 2f32.powf(e).is_normal()),
+        "--exposure must be a number of stops in [-126, 127]"
+    );
+    if let ReferenceSource::Render { integrator, spp, passes, out } = &cfg.reference {
+        ensure_exr("--reference-out", out)?;
+        check_no_stale_state(out, "")?;
+        ensure!(*passes >= 2, "--reference-passes must be at least 2");
+        ensure!(*spp >= 1, "--reference-spp must be at least 1");
+        integrators::create(integrator, &IntegratorOptions::default()).map_err(anyhow::Error::msg)?;
+    }
+    Ok(())
+}
+
+/// `info` with the reference's own noise estimated from the run of the same
+/// estimator (integrator, MIS heuristic and, where known, depth), if any.
+fn with_noise_floor(mut info: ReferenceInfo, results: &[IntegratorResult], max_depth: u32) -> ReferenceInfo {
+    let same = results.iter().find(|x| {
+        Some(&x.integrator) == info.integrator.as_ref()
+            && Some(&x.mis) == info.mis.as_ref()
+            && info.max_depth.is_none_or(|d| d == max_depth)
+    });
+    if let (Some(x), Some(n_ref)) = (same, info.spp) {
+        // m = V/n + V/N at the last checkpoint (independent seeds), so V/N = m / (N/n + 1).
+        info.noise_floor = Some(x.rel_mse / (n_ref as f64 / x.spp as f64 + 1.0));
+        info.noise_floor_method = Some(format!("same estimator ({})", x.label));
+    }
+    info
+}
+
+/// A note of the samples an integrator's film kept out, if any.
+fn dropped_note(x: &IntegratorResult) -> Option<String> {
+    let d = &x.dropped;
+    (d.total() > 0).then(|| {
+        format!(
+            "{}: dropped {} samples ({} NaN, {} infinite, {} negative)",
+            x.label,
+            d.total(),
+            d.nan,
+            d.infinite,
+            d.negative
+        )
+    })
+}
+
+/// Notes on how far a result can be trusted: a run too short to time, a
+/// reference whose own noise is a large part of the measured error.
+fn result_notes(cfg: &ConvergeConfig, x: &IntegratorResult, info: &ReferenceInfo) -> Vec<String> {
+    let mut notes = Vec::new();
+    if x.efficiency.is_nan() {
+        notes.push(format!(
+            "{}: {:.3} {} is below {} s, too short to measure (the CPU clock ticks every 10 ms): not \
+             ranked; give a larger --time or --spp",
+            x.label,
+            x.seconds,
+            cfg.clock.unit(),
+            cfg.clock.min_seconds()
+        ));
+    }
+    if let Some(floor) = info.noise_floor.filter(|&f| f > 0.1 * x.rel_mse) {
+        notes.push(format!(
+            "{}: the reference's own noise (relMSE ~{floor:.2e}) is {:.0} % of the measured {:.2e}: its \
+             efficiency ratios are pulled towards 1; render a reference with more samples",
+            x.label,
+            100.0 * floor / x.rel_mse,
+            x.rel_mse
+        ));
+    }
+    notes
 }
 
 /// Every file the run writes, by role, against its inputs (`check_outputs`),
