@@ -32,97 +32,142 @@ pub(super) fn obtain_reference(
             }
         }
         ReferenceSource::Render { integrator, spp, passes, out } => {
-            // Both directories now, so that one that cannot be made stops
-            // the run before the reference is rendered.
-            for dir in out.parent().filter(|d| !d.as_os_str().is_empty()).into_iter().chain([cfg.out.as_path()]) {
-                std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-            }
-            let estimator = integrators::create(integrator, &IntegratorOptions { max_depth, mis: MisHeuristic::Power })
-                .map_err(anyhow::Error::msg)?;
-            let per_pass = spp.div_ceil(*passes);
-            // The largest block (for the sidecar's z-test statistics) that tiles the image.
-            let block = [8, 4, 2, 1].into_iter().find(|b| w % b == 0 && h % b == 0).unwrap_or(1);
-            let ref_seed = seed.wrapping_add(REFERENCE_SEED_OFFSET);
-            let bar = spinner(cfg.progress, format!("reference: {integrator}, {passes} passes x {per_pass} spp"));
-            let (image, meta) = make_reference(
-                scene,
-                scene_name,
-                estimator.as_ref(),
-                integrator,
-                per_pass,
-                *passes,
-                ref_seed,
-                block,
-                cfg.threads,
-                cfg.command.clone(),
-            );
-            bar.finish_and_clear();
-            eprintln!(
-                "reference: {integrator}, {passes} passes x {per_pass} spp in {:.1} s -> {}",
-                meta.wall_seconds,
-                out.display()
-            );
-            write_reference(out, &image, &meta)?;
-            // (Rendered with this run's max depth.)
-            let origin = Origin { max_depth: Some(max_depth), ..Origin::of_reference(&meta) };
+            let job = ReferenceJob { integrator, spp: *spp, passes: *passes, out };
+            let (image, origin) = render_reference(cfg, scene, scene_name, seed, max_depth, &job)?;
             (image, Some(origin), out.clone(), true)
         }
     };
-    if let Some(m) = &origin {
-        if Path::new(&m.scene).file_name() != cfg.scene.file_name() {
-            notes.push(format!("the reference was rendered from {}, this run renders {scene_name}", m.scene));
-        }
-        // A reference from an estimator that cannot sample the whole scene
-        // is biased, and so is every error measured against it.
-        if let Ok(estimator) =
-            integrators::create(&m.integrator, &IntegratorOptions { max_depth, ..Default::default() })
-        {
-            for w in estimator.unsamplable(scene) {
-                notes.push(format!("the reference's integrator {} cannot sample this scene fully: {w}", m.integrator));
-            }
-        }
-        ensure!(
-            (m.width, m.height) == (w, h),
-            "{} is {}x{} but the run renders {w}x{h}",
-            path.display(),
-            m.width,
-            m.height
-        );
-        if m.max_depth.is_some_and(|d| d != max_depth) {
-            notes.push(format!(
-                "the reference was rendered with max depth {}, this run uses {max_depth}: they estimate different images",
-                m.max_depth.unwrap_or_default()
-            ));
-        }
-        // The run renders samples 0.. of seed `seed` (the sampler is keyed
-        // by seed, pixel and sample index): a reference shares its streams
-        // if it used that seed from sample 0.
-        let seeds = m.seed..m.seed.saturating_add(m.passes.unwrap_or(1) as u64);
-        if seeds.contains(&seed) && m.first_sample == 0 {
-            notes.push(format!(
-                "the reference's passes used seeds {}..{} which include the run's seed {seed}: its samples are \
-                 correlated with the run's, and the errors measured are too low",
-                seeds.start, seeds.end
-            ));
-        }
-    } else {
-        notes.push("the reference has no sidecar: its integrator, spp and noise are unknown".to_string());
+    match &origin {
+        Some(m) => notes.extend(origin_notes(cfg, scene, scene_name, seed, max_depth, m, &path)?),
+        None => notes.push("the reference has no sidecar: its integrator, spp and noise are unknown".to_string()),
     }
-    let noise_floor = origin.as_ref().and_then(|m| m.noise_floor);
-    let info = ReferenceInfo {
+    Ok((image, reference_info(&path, here, origin.as_ref())))
+}
+
+/// What `--reference-integrator`, `--reference-spp`, `--reference-passes`
+/// and `--reference-out` ask for.
+struct ReferenceJob<'a> {
+    integrator: &'a str,
+    spp: u32,
+    passes: u32,
+    out: &'a Path,
+}
+
+/// Renders the reference a run asked for and writes it (with its sidecar).
+fn render_reference(
+    cfg: &ConvergeConfig,
+    scene: &Scene,
+    scene_name: &str,
+    seed: u64,
+    max_depth: u32,
+    job: &ReferenceJob,
+) -> Result<(Vec<[f32; 3]>, Origin)> {
+    let ReferenceJob { integrator, spp, passes, out } = *job;
+    let (w, h) = (scene.camera.width, scene.camera.height);
+    // Both directories now, so that one that cannot be made stops
+    // the run before the reference is rendered.
+    for dir in out.parent().filter(|d| !d.as_os_str().is_empty()).into_iter().chain([cfg.out.as_path()]) {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    let estimator = integrators::create(integrator, &IntegratorOptions { max_depth, mis: MisHeuristic::Power })
+        .map_err(anyhow::Error::msg)?;
+    let per_pass = spp.div_ceil(passes);
+    // The largest block (for the sidecar's z-test statistics) that tiles the image.
+    let block = [8, 4, 2, 1].into_iter().find(|b| w % b == 0 && h % b == 0).unwrap_or(1);
+    let ref_seed = seed.wrapping_add(REFERENCE_SEED_OFFSET);
+    let bar = spinner(cfg.progress, format!("reference: {integrator}, {passes} passes x {per_pass} spp"));
+    let (image, meta) = make_reference(
+        scene,
+        scene_name,
+        estimator.as_ref(),
+        integrator,
+        per_pass,
+        passes,
+        ref_seed,
+        block,
+        cfg.threads,
+        cfg.command.clone(),
+    );
+    bar.finish_and_clear();
+    eprintln!(
+        "reference: {integrator}, {passes} passes x {per_pass} spp in {:.1} s -> {}",
+        meta.wall_seconds,
+        out.display()
+    );
+    write_reference(out, &image, &meta)?;
+    // (Rendered with this run's max depth.)
+    let origin = Origin { max_depth: Some(max_depth), ..Origin::of_reference(&meta) };
+    Ok((image, origin))
+}
+
+/// Notes on a reference's origin against the run (another scene, an
+/// estimator that misses paths, another depth, shared random streams);
+/// an error when its size differs.
+fn origin_notes(
+    cfg: &ConvergeConfig,
+    scene: &Scene,
+    scene_name: &str,
+    seed: u64,
+    max_depth: u32,
+    m: &Origin,
+    path: &Path,
+) -> Result<Vec<String>> {
+    let (w, h) = (scene.camera.width, scene.camera.height);
+    let mut notes = Vec::new();
+    if Path::new(&m.scene).file_name() != cfg.scene.file_name() {
+        notes.push(format!("the reference was rendered from {}, this run renders {scene_name}", m.scene));
+    }
+    // A reference from an estimator that cannot sample the whole scene
+    // is biased, and so is every error measured against it.
+    if let Ok(estimator) = integrators::create(&m.integrator, &IntegratorOptions { max_depth, ..Default::default() }) {
+        for warning in estimator.unsamplable(scene) {
+            notes
+                .push(format!("the reference's integrator {} cannot sample this scene fully: {warning}", m.integrator));
+        }
+    }
+    ensure!(
+        (m.width, m.height) == (w, h),
+        "{} is {}x{} but the run renders {w}x{h}",
+        path.display(),
+        m.width,
+        m.height
+    );
+    if m.max_depth.is_some_and(|d| d != max_depth) {
+        notes.push(format!(
+            "the reference was rendered with max depth {}, this run uses {max_depth}: they estimate different images",
+            m.max_depth.unwrap_or_default()
+        ));
+    }
+    // The run renders samples 0.. of seed `seed` (the sampler is keyed
+    // by seed, pixel and sample index): a reference shares its streams
+    // if it used that seed from sample 0.
+    let seeds = m.seed..m.seed.saturating_add(m.passes.unwrap_or(1) as u64);
+    if seeds.contains(&seed) && m.first_sample == 0 {
+        notes.push(format!(
+            "the reference's passes used seeds {}..{} which include the run's seed {seed}: its samples are \
+             correlated with the run's, and the errors measured are too low",
+            seeds.start, seeds.end
+        ));
+    }
+    Ok(notes)
+}
+
+/// What the run's results say of the reference.
+fn reference_info(path: &Path, here: bool, origin: Option<&Origin>) -> ReferenceInfo {
+    let noise_floor = origin.and_then(|m| m.noise_floor);
+    ReferenceInfo {
         path: path.display().to_string(),
         rendered_here: here,
-        integrator: origin.as_ref().map(|m| m.integrator.clone()),
-        spp: origin.as_ref().map(|m| m.spp),
-        passes: origin.as_ref().and_then(|m| m.passes),
-        seed: origin.as_ref().map(|m| m.seed),
-        mis: origin.as_ref().map(|m| m.mis.clone()),
-        max_depth: origin.as_ref().and_then(|m| m.max_depth),
-        wall_seconds: origin.as_ref().and_then(|m| m.wall_seconds),
+        integrator: origin.map(|m| m.integrator.clone()),
+        spp: origin.map(|m| m.spp),
+        passes: origin.and_then(|m| m.passes),
+        seed: origin.map(|m| m.seed),
+        mis: origin.map(|m| m.mis.clone()),
+        max_depth: origin.and_then(|m| m.max_depth),
+        wall_seconds: origin.and_then(|m| m.wall_seconds),
         noise_floor,
         noise_floor_method: noise_floor.map(|_| "block errors".to_string()),
-    };
-    Ok((image, info))
+    }
 }
 
 /// Where a reference image came from, as its sidecar says: a `prism
