@@ -249,13 +249,18 @@ pub fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) ->
 
 /// Writes an f32 RGB EXR (linear sRGB).
 pub fn write_exr(path: &Path, width: u32, height: u32, image: &[[f32; 3]]) -> Result<()> {
-    write_atomically(path, |tmp| {
-        exr::prelude::write_rgb_file(tmp, width as usize, height as usize, |x, y| {
-            let p = image[y * width as usize + x];
-            (p[0], p[1], p[2])
-        })
-        .with_context(|| format!("cannot write {}", path.display()))
-    })
+    use exr::prelude::*;
+    let channels = SpecificChannels::rgb(|Vec2(x, y): Vec2<usize>| {
+        let p = image[y * width as usize + x];
+        (p[0], p[1], p[2])
+    });
+    // The default's line order is "unspecified": the crate then writes its
+    // parallel-compressed blocks as they finish, so two writes of one image
+    // could differ in bytes. In increasing order it sorts them, and the file
+    // depends on the pixels alone.
+    let encoding = Encoding { line_order: LineOrder::Increasing, ..Encoding::FAST_LOSSLESS };
+    let exr = Image::from_encoded_channels((width as usize, height as usize), encoding, channels);
+    write_atomically(path, |tmp| exr.write().to_file(tmp).with_context(|| format!("cannot write {}", path.display())))
 }
 
 /// Reads an RGB EXR into (width, height, pixels).
@@ -311,6 +316,32 @@ pub fn write_bytes(path: &Path, bytes: &[u8]) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Two writes of one image give the same bytes (the exr crate compresses
+    /// blocks in parallel; in its default "unspecified" line order about one
+    /// write in six of a small render came out in another block order).
+    #[test]
+    fn exr_files_depend_on_the_pixels_alone() {
+        let (w, h) = (512u32, 256u32);
+        // Pixels that compress to blocks of very different sizes and times.
+        let image: Vec<[f32; 3]> = (0..w * h)
+            .map(|i| {
+                let v = if (i / w) % 128 < 64 { (i as f32 * 0.618).fract() } else { 0.25 };
+                [v, v * 0.5, 1.0 - v]
+            })
+            .collect();
+        let dir = std::env::temp_dir().join(format!("prism-exr-bytes-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("x.exr");
+        let mut first = None;
+        for _ in 0..96 {
+            write_exr(&path, w, h, &image).unwrap();
+            let bytes = std::fs::read(&path).unwrap();
+            assert_eq!(bytes, *first.get_or_insert_with(|| bytes.clone()), "two writes of one image differ");
+        }
+        assert_eq!(read_exr(&path).unwrap(), (w, h, image));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     #[test]
     fn adding_films_refuses_to_wrap() {

@@ -46,7 +46,7 @@ enum Command {
     /// Compare an image with a reference: relMSE, MSE, mean absolute error.
     Compare { image: PathBuf, reference: PathBuf },
     /// Progressive renders against a reference: relMSE vs time and spp per
-    /// integrator, charts, efficiency table and report (VALIDATION.md §6).
+    /// integrator, charts, efficiency table and report (docs/results.md).
     Converge(prism::converge::ConvergeArgs),
     /// Export a scene for Mitsuba 3 (XML + PLY) to render it side by side (benches/peers).
     ExportMitsuba(prism::mitsuba::ExportMitsubaArgs),
@@ -90,7 +90,7 @@ struct ReferenceArgs {
 
 #[derive(clap::Args)]
 struct RenderArgs {
-    /// Scene file (JSON).
+    /// Scene file (JSON, or glTF: .gltf / .glb).
     scene: PathBuf,
     /// Estimator (see `prism integrators`); default: the scene's, else `path`.
     #[arg(long)]

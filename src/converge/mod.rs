@@ -103,7 +103,7 @@ pub const REFERENCE_SEED_OFFSET: u64 = 1 << 32;
 /// `prism converge`: error against a reference vs time and spp, per integrator.
 #[derive(clap::Args, Debug)]
 pub struct ConvergeArgs {
-    /// Scene file (JSON).
+    /// Scene file (JSON, or glTF: .gltf / .glb).
     pub scene: PathBuf,
     /// Comma-separated integrator specs, `name` or `name:heuristic` (e.g.
     /// `path,light,bdpt,bdpt:uniform`).
