@@ -491,82 +491,22 @@ impl Ctx<'_> {
     }
 
     fn spectrum_depth(&self, path: &[Seg], spec: &SpectrumSpec, usage: Use, depth: u32) -> Result<Spectrum, LoadError> {
-        let positive = |x: f32, what: &str| {
-            if x.is_finite() && x >= 0.0 {
-                Ok(x)
-            } else {
-                Err(self.err(path, format!("{what} must be a finite number >= 0, got {x}")))
-            }
-        };
         let s = match spec {
-            SpectrumSpec::Constant(c) => Spectrum::Constant(positive(*c, "a spectrum value")?),
-            SpectrumSpec::Name(name) => {
-                if let Some(s) = self.spectra.get(name) {
-                    if depth > 8 {
-                        return Err(self.err(path, format!("spectrum \"{name}\" refers to itself")));
-                    }
-                    return self.spectrum_depth(path, s, usage, depth + 1);
-                }
-                // Built-in names by use: glasses for an IOR, illuminants for
-                // emission; reflectances have none (a name there must be one
-                // of the scene's own spectra).
-                let builtin = match usage {
-                    Use::Ior => spectrum::glass_ior(name),
-                    Use::Emission => spectrum::illuminant(name),
-                    Use::Reflectance | Use::Other => None,
-                };
-                builtin.ok_or_else(|| {
-                    let mut known: Vec<String> = self.spectra.keys().cloned().collect();
-                    let builtins = match usage {
-                        Use::Ior => spectrum::GLASS_NAMES,
-                        Use::Emission => spectrum::ILLUMINANT_NAMES,
-                        Use::Reflectance | Use::Other => &[],
-                    };
-                    known.extend(builtins.iter().map(|s| s.to_string()));
-                    if known.is_empty() {
-                        // Not "(known: )": say where names come from.
-                        let why = "the scene defines no \"spectra\"; built-in names exist only for emission and ior";
-                        return self.err(path, format!("unknown spectrum \"{name}\" ({why})"));
-                    }
-                    self.err(path, format!("unknown spectrum \"{name}\" (known: {})", known.join(", ")))
-                })?
-            }
+            SpectrumSpec::Constant(c) => Spectrum::Constant(self.non_negative(path, *c, "a spectrum value")?),
+            SpectrumSpec::Name(name) => return self.named_spectrum(path, name, usage, depth),
             SpectrumSpec::Rgb(rgb, scale) => {
                 self.finite(path, rgb)?;
-                let scale = positive(*scale, "scale")?;
-                if rgb.iter().any(|&c| c < 0.0) {
-                    return Err(self.err(path, "rgb components must be >= 0"));
-                }
-                match usage {
-                    Use::Emission => spectrum::rgb_illuminant(*rgb).scale(scale),
-                    _ => {
-                        if rgb.iter().any(|&c| c > 1.0) {
-                            return Err(self.err(path, "a reflectance rgb must lie in [0, 1]"));
-                        }
-                        spectrum::rgb_albedo(*rgb).scale(scale)
-                    }
-                }
+                let scale = self.scale(path, *scale)?;
+                self.rgb_spectrum(path, rgb, usage)?.scale(scale)
             }
             SpectrumSpec::Blackbody(t, scale) => {
                 if !(t.is_finite() && *t > 0.0) {
                     return Err(self.err(path, "blackbody temperature must be > 0 kelvin"));
                 }
-                spectrum::blackbody(*t).scale(positive(*scale, "scale")?)
+                spectrum::blackbody(*t).scale(self.scale(path, *scale)?)
             }
             SpectrumSpec::Tabulated(w, v, scale) => {
-                if w.len() != v.len() || w.is_empty() {
-                    return Err(self.err(path, "\"wavelengths\" and \"values\" must be non-empty and of equal length"));
-                }
-                self.finite(path, w)?;
-                self.finite(path, v)?;
-                if w.windows(2).any(|p| p[1] <= p[0]) {
-                    return Err(self.err(path, "\"wavelengths\" must increase strictly"));
-                }
-                if v.iter().any(|&x| x < 0.0) {
-                    return Err(self.err(path, "spectrum values must be >= 0"));
-                }
-                let pts: Vec<(f32, f32)> = w.iter().copied().zip(v.iter().copied()).collect();
-                Spectrum::piecewise_linear(&pts).scale(positive(*scale, "scale")?)
+                self.tabulated_spectrum(path, w, v)?.scale(self.scale(path, *scale)?)
             }
             SpectrumSpec::Sellmeier(b, c) => {
                 self.finite(path, b)?;
@@ -578,6 +518,84 @@ impl Ctx<'_> {
                 spectrum::cauchy(*a, *b)
             }
         };
+        self.check_spectrum(path, s, usage)
+    }
+
+    fn non_negative(&self, path: &[Seg], x: f32, what: &str) -> Result<f32, LoadError> {
+        if x.is_finite() && x >= 0.0 {
+            Ok(x)
+        } else {
+            Err(self.err(path, format!("{what} must be a finite number >= 0, got {x}")))
+        }
+    }
+
+    fn scale(&self, path: &[Seg], scale: f32) -> Result<f32, LoadError> {
+        self.non_negative(path, scale, "scale")
+    }
+
+    /// A name: one of the scene's `spectra` (which may name another, up to a
+    /// depth of 8), else a built-in of the use (glasses for an IOR,
+    /// illuminants for emission; reflectances have none).
+    fn named_spectrum(&self, path: &[Seg], name: &str, usage: Use, depth: u32) -> Result<Spectrum, LoadError> {
+        if let Some(s) = self.spectra.get(name) {
+            if depth > 8 {
+                return Err(self.err(path, format!("spectrum \"{name}\" refers to itself")));
+            }
+            return self.spectrum_depth(path, s, usage, depth + 1);
+        }
+        let (builtin, builtins) = match usage {
+            Use::Ior => (spectrum::glass_ior(name), spectrum::GLASS_NAMES),
+            Use::Emission => (spectrum::illuminant(name), spectrum::ILLUMINANT_NAMES),
+            Use::Reflectance | Use::Other => (None, &[][..]),
+        };
+        let s = builtin.ok_or_else(|| {
+            let mut known: Vec<String> = self.spectra.keys().cloned().collect();
+            known.extend(builtins.iter().map(|s| s.to_string()));
+            if known.is_empty() {
+                // Not "(known: )": say where names come from.
+                let why = "the scene defines no \"spectra\"; built-in names exist only for emission and ior";
+                return self.err(path, format!("unknown spectrum \"{name}\" ({why})"));
+            }
+            self.err(path, format!("unknown spectrum \"{name}\" (known: {})", known.join(", ")))
+        })?;
+        self.check_spectrum(path, s, usage)
+    }
+
+    /// Linear sRGB (finite): an illuminant shape for emission, else a
+    /// reflectance in [0, 1] (Jakob & Hanika 2019).
+    fn rgb_spectrum(&self, path: &[Seg], rgb: &[f32; 3], usage: Use) -> Result<Spectrum, LoadError> {
+        if rgb.iter().any(|&c| c < 0.0) {
+            return Err(self.err(path, "rgb components must be >= 0"));
+        }
+        if usage == Use::Emission {
+            return Ok(spectrum::rgb_illuminant(*rgb));
+        }
+        if rgb.iter().any(|&c| c > 1.0) {
+            return Err(self.err(path, "a reflectance rgb must lie in [0, 1]"));
+        }
+        Ok(spectrum::rgb_albedo(*rgb))
+    }
+
+    /// `wavelengths` and `values`: piecewise linear.
+    fn tabulated_spectrum(&self, path: &[Seg], w: &[f32], v: &[f32]) -> Result<Spectrum, LoadError> {
+        if w.len() != v.len() || w.is_empty() {
+            return Err(self.err(path, "\"wavelengths\" and \"values\" must be non-empty and of equal length"));
+        }
+        self.finite(path, w)?;
+        self.finite(path, v)?;
+        if w.windows(2).any(|p| p[1] <= p[0]) {
+            return Err(self.err(path, "\"wavelengths\" must increase strictly"));
+        }
+        if v.iter().any(|&x| x < 0.0) {
+            return Err(self.err(path, "spectrum values must be >= 0"));
+        }
+        let pts: Vec<(f32, f32)> = w.iter().copied().zip(v.iter().copied()).collect();
+        Ok(Spectrum::piecewise_linear(&pts))
+    }
+
+    /// What every spectrum must be: finite everywhere, and within the range
+    /// of its use (a reflectance at most 1, an IOR above 0).
+    fn check_spectrum(&self, path: &[Seg], s: Spectrum, usage: Use) -> Result<Spectrum, LoadError> {
         let finite = match &s {
             Spectrum::Constant(c) => c.is_finite(),
             Spectrum::Dense(t) => t.iter().all(|v| v.is_finite()),
