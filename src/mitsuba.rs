@@ -103,6 +103,37 @@ struct Group {
 /// Writes `dir/scene.xml` and `dir/meshes/*.ply`; returns the mesh count.
 /// Everything unsupported is refused before anything is written.
 pub fn export(scene: &Scene, dir: &Path, spp: u32) -> Result<usize> {
+    check_lights(scene)?;
+    let groups = group_triangles(scene);
+    for g in &groups {
+        let material = &scene.materials[g.material as usize];
+        if !matches!(material.bsdf, Bsdf::Diffuse(_)) {
+            bail!("material {}: only diffuse materials are exported", material.name);
+        }
+    }
+    let mesh_dir = dir.join("meshes");
+    std::fs::create_dir_all(&mesh_dir).with_context(|| format!("cannot create {}", mesh_dir.display()))?;
+    let mut xml = String::new();
+    let _ = writeln!(xml, "<?xml version=\"1.0\" encoding=\"utf-8\"?>");
+    let _ = writeln!(
+        xml,
+        "<!-- Exported by `prism export-mitsuba` (src/mitsuba.rs); render with benches/peers/mitsuba_render.py. -->"
+    );
+    let _ = writeln!(xml, "<scene version=\"3.0.0\">");
+    sensor_xml(&mut xml, &scene.camera, spp);
+    for (k, g) in groups.iter().enumerate() {
+        let file = format!("meshes/{k:03}.ply");
+        write_ply(&dir.join(&file), &g.positions, &g.normals)?;
+        shape_xml(&mut xml, scene, g, &file);
+    }
+    let _ = writeln!(xml, "</scene>");
+    let path = dir.join("scene.xml");
+    write_bytes(&path, xml.as_bytes())?;
+    Ok(groups.len())
+}
+
+/// Only one-sided area lights have a Mitsuba equivalent here.
+fn check_lights(scene: &Scene) -> Result<()> {
     for (i, light) in scene.lights.iter().enumerate() {
         match light {
             Light::Area(a) if a.two_sided => {
@@ -113,6 +144,12 @@ pub fn export(scene: &Scene, dir: &Path, spp: u32) -> Result<usize> {
             Light::Environment(_) => bail!("light {}: environment lights are not exported", scene.light_names[i]),
         }
     }
+    Ok(())
+}
+
+/// The scene's triangles by (material, emission, smooth shading), in order
+/// of first appearance: one PLY each.
+fn group_triangles(scene: &Scene) -> Vec<Group> {
     let mut groups: Vec<Group> = Vec::new();
     for (v, ns, material, light) in scene.triangles() {
         let emission = light.map(|l| match &scene.lights[l as usize] {
@@ -131,25 +168,15 @@ pub fn export(scene: &Scene, dir: &Path, spp: u32) -> Result<usize> {
         groups[k].positions.extend(v);
         groups[k].normals.extend(ns.into_iter().flatten());
     }
-    for g in &groups {
-        let material = &scene.materials[g.material as usize];
-        if !matches!(material.bsdf, Bsdf::Diffuse(_)) {
-            bail!("material {}: only diffuse materials are exported", material.name);
-        }
-    }
-    let mesh_dir = dir.join("meshes");
-    std::fs::create_dir_all(&mesh_dir).with_context(|| format!("cannot create {}", mesh_dir.display()))?;
-    let cam = &scene.camera;
+    groups
+}
+
+/// The pinhole as a `perspective` sensor (vertical fov, look-at) with an
+/// RGB float `hdrfilm` and a box filter.
+fn sensor_xml(xml: &mut String, cam: &Camera, spp: u32) {
     let (forward, up, fov_y) = cam.orientation();
     let p = cam.position;
     let t = p + forward;
-    let mut xml = String::new();
-    let _ = writeln!(xml, "<?xml version=\"1.0\" encoding=\"utf-8\"?>");
-    let _ = writeln!(
-        xml,
-        "<!-- Exported by `prism export-mitsuba` (src/mitsuba.rs); render with benches/peers/mitsuba_render.py. -->"
-    );
-    let _ = writeln!(xml, "<scene version=\"3.0.0\">");
     let _ = writeln!(xml, "  <default name=\"spp\" value=\"{spp}\"/>");
     let _ = writeln!(xml, "  <default name=\"width\" value=\"{}\"/>", cam.width);
     let _ = writeln!(xml, "  <default name=\"height\" value=\"{}\"/>", cam.height);
@@ -173,33 +200,30 @@ pub fn export(scene: &Scene, dir: &Path, spp: u32) -> Result<usize> {
     let _ = writeln!(xml, "      <rfilter type=\"box\"/>");
     let _ = writeln!(xml, "    </film>");
     let _ = writeln!(xml, "  </sensor>");
-    for (k, g) in groups.iter().enumerate() {
-        let material = &scene.materials[g.material as usize];
-        let Bsdf::Diffuse(d) = &material.bsdf else {
-            unreachable!("checked above");
-        };
-        let file = format!("meshes/{k:03}.ply");
-        write_ply(&dir.join(&file), &g.positions, &g.normals)?;
-        let _ = writeln!(xml, "  <!-- material {} -->", xml_escape(&material.name));
-        let _ = writeln!(xml, "  <shape type=\"ply\">");
-        let _ = writeln!(xml, "    <string name=\"filename\" value=\"{file}\"/>");
-        if g.normals.is_empty() {
-            let _ = writeln!(xml, "    <boolean name=\"face_normals\" value=\"true\"/>");
-        }
-        let _ = writeln!(xml, "    <bsdf type=\"twosided\"><bsdf type=\"diffuse\">");
-        let _ = writeln!(xml, "      <spectrum name=\"reflectance\" value=\"{}\"/>", spectrum_list(&d.reflectance));
-        let _ = writeln!(xml, "    </bsdf></bsdf>");
-        if let Some(le) = &g.emission {
-            let _ = writeln!(xml, "    <emitter type=\"area\">");
-            let _ = writeln!(xml, "      <spectrum name=\"radiance\" value=\"{}\"/>", spectrum_list(le));
-            let _ = writeln!(xml, "    </emitter>");
-        }
-        let _ = writeln!(xml, "  </shape>");
+}
+
+/// One group as a `ply` shape with its two-sided diffuse BSDF and, if it
+/// emits, its area emitter.
+fn shape_xml(xml: &mut String, scene: &Scene, g: &Group, file: &str) {
+    let material = &scene.materials[g.material as usize];
+    let Bsdf::Diffuse(d) = &material.bsdf else {
+        unreachable!("export checks that every material is diffuse");
+    };
+    let _ = writeln!(xml, "  <!-- material {} -->", xml_escape(&material.name));
+    let _ = writeln!(xml, "  <shape type=\"ply\">");
+    let _ = writeln!(xml, "    <string name=\"filename\" value=\"{file}\"/>");
+    if g.normals.is_empty() {
+        let _ = writeln!(xml, "    <boolean name=\"face_normals\" value=\"true\"/>");
     }
-    let _ = writeln!(xml, "</scene>");
-    let path = dir.join("scene.xml");
-    write_bytes(&path, xml.as_bytes())?;
-    Ok(groups.len())
+    let _ = writeln!(xml, "    <bsdf type=\"twosided\"><bsdf type=\"diffuse\">");
+    let _ = writeln!(xml, "      <spectrum name=\"reflectance\" value=\"{}\"/>", spectrum_list(&d.reflectance));
+    let _ = writeln!(xml, "    </bsdf></bsdf>");
+    if let Some(le) = &g.emission {
+        let _ = writeln!(xml, "    <emitter type=\"area\">");
+        let _ = writeln!(xml, "      <spectrum name=\"radiance\" value=\"{}\"/>", spectrum_list(le));
+        let _ = writeln!(xml, "    </emitter>");
+    }
+    let _ = writeln!(xml, "  </shape>");
 }
 
 /// `"360:v, 361:v, ..., 830:v"`: the spectrum at every integer nanometre of
