@@ -455,74 +455,8 @@ impl Importer {
         }
         for prim in mesh.primitives() {
             let pwhat = format!("{what}, primitive {}", prim.index());
-            let mode = prim.mode();
-            if !matches!(mode, Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
-                return Err(self.fail(
-                    &pwhat,
-                    format!(
-                        "mode {mode:?} is not supported: prism renders surfaces only (Triangles, TriangleStrip, \
-                         TriangleFan)"
-                    ),
-                ));
-            }
-            // The crate's readers assume these layouts (and panic or misread
-            // otherwise): check them first.
-            use gltf::accessor::{DataType, Dimensions};
-            let layout = |a: &gltf::Accessor, dims: Dimensions, types: &[DataType]| {
-                a.dimensions() == dims && types.contains(&a.data_type())
-            };
-            if let Some(a) = prim.get(&gltf::Semantic::Positions) {
-                if !layout(&a, Dimensions::Vec3, &[DataType::F32]) {
-                    return Err(self.fail(&pwhat, "POSITION must be VEC3 of FLOAT (quantized positions unsupported)"));
-                }
-            }
-            if let Some(a) = prim.get(&gltf::Semantic::Normals) {
-                if !layout(&a, Dimensions::Vec3, &[DataType::F32]) {
-                    return Err(self.fail(&pwhat, "NORMAL must be VEC3 of FLOAT (quantized normals unsupported)"));
-                }
-            }
-            if let Some(a) = prim.indices() {
-                if !layout(&a, Dimensions::Scalar, &[DataType::U8, DataType::U16, DataType::U32]) {
-                    return Err(self.fail(&pwhat, "indices must be SCALAR of UNSIGNED_BYTE, _SHORT or _INT"));
-                }
-            }
-            if prim.attributes().any(|(s, _)| s == gltf::Semantic::Colors(0)) {
-                self.warn(&pwhat, "vertex colours (COLOR_0) are ignored");
-            }
-            let (positions, normals, list) = {
-                let buffers = &self.buffers;
-                let reader = prim.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
-                let positions: Option<Vec<Vec3A>> = reader.read_positions().map(|p| p.map(Vec3A::from_array).collect());
-                let normals: Vec<Vec3A> =
-                    reader.read_normals().map_or_else(Vec::new, |n| n.map(Vec3A::from_array).collect());
-                let list: Option<Vec<u32>> = reader.read_indices().map(|i| i.into_u32().collect());
-                (positions, normals, list)
-            };
-            let Some(positions) = positions else {
-                return Err(self.fail(&pwhat, "has no POSITION data"));
-            };
-            if Some(positions.len()) != prim.get(&gltf::Semantic::Positions).map(|a| a.count()) {
-                return Err(self.fail(&pwhat, "the POSITION accessor reaches outside its buffer view"));
-            }
-            let normals = if normals.len() == positions.len() {
-                normals
-            } else {
-                if !normals.is_empty() {
-                    self.warn(&pwhat, "NORMAL count differs from POSITION count: flat shading");
-                }
-                Vec::new()
-            };
-            let list = match list {
-                Some(list) if Some(list.len()) != prim.indices().map(|a| a.count()) => {
-                    return Err(self.fail(&pwhat, "the index accessor reaches outside its buffer view"));
-                }
-                Some(list) => list,
-                None => (0..positions.len() as u32).collect(),
-            };
-            if let Some(i) = list.iter().find(|&&i| i as usize >= positions.len()) {
-                return Err(self.fail(&pwhat, format!("index {i} is out of range ({} positions)", positions.len())));
-            }
-            let mut m = Mesh { positions, normals, indices: triangulate(mode, &list) };
+            self.check_primitive(&prim, &pwhat)?;
+            let mut m = self.read_primitive(&prim, &pwhat)?;
             m.transform(world);
             if m.positions.iter().any(|p| !p.is_finite()) {
                 return Err(self.fail(&pwhat, "vertex positions are not finite"));
@@ -532,6 +466,84 @@ impl Importer {
             content.meshes.push(ImportedMesh { name: pwhat, mesh: m, material });
         }
         Ok(())
+    }
+
+    /// A primitive's mode and accessor layouts: surfaces only, and the
+    /// layouts the crate's readers assume (they panic or misread otherwise).
+    fn check_primitive(&mut self, prim: &gltf::Primitive, pwhat: &str) -> Result<(), LoadError> {
+        let mode = prim.mode();
+        if !matches!(mode, Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
+            return Err(self.fail(
+                pwhat,
+                format!(
+                    "mode {mode:?} is not supported: prism renders surfaces only (Triangles, TriangleStrip, \
+                     TriangleFan)"
+                ),
+            ));
+        }
+        use gltf::accessor::{DataType, Dimensions};
+        let layout = |a: &gltf::Accessor, dims: Dimensions, types: &[DataType]| {
+            a.dimensions() == dims && types.contains(&a.data_type())
+        };
+        if let Some(a) = prim.get(&gltf::Semantic::Positions) {
+            if !layout(&a, Dimensions::Vec3, &[DataType::F32]) {
+                return Err(self.fail(pwhat, "POSITION must be VEC3 of FLOAT (quantized positions unsupported)"));
+            }
+        }
+        if let Some(a) = prim.get(&gltf::Semantic::Normals) {
+            if !layout(&a, Dimensions::Vec3, &[DataType::F32]) {
+                return Err(self.fail(pwhat, "NORMAL must be VEC3 of FLOAT (quantized normals unsupported)"));
+            }
+        }
+        if let Some(a) = prim.indices() {
+            if !layout(&a, Dimensions::Scalar, &[DataType::U8, DataType::U16, DataType::U32]) {
+                return Err(self.fail(pwhat, "indices must be SCALAR of UNSIGNED_BYTE, _SHORT or _INT"));
+            }
+        }
+        if prim.attributes().any(|(s, _)| s == gltf::Semantic::Colors(0)) {
+            self.warn(pwhat, "vertex colours (COLOR_0) are ignored");
+        }
+        Ok(())
+    }
+
+    /// A primitive's triangles in its local frame: positions, normals (when
+    /// there is one per position) and the triangulated index list, each
+    /// accessor checked against its buffer.
+    fn read_primitive(&mut self, prim: &gltf::Primitive, pwhat: &str) -> Result<Mesh, LoadError> {
+        let (positions, normals, list) = {
+            let buffers = &self.buffers;
+            let reader = prim.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
+            let positions: Option<Vec<Vec3A>> = reader.read_positions().map(|p| p.map(Vec3A::from_array).collect());
+            let normals: Vec<Vec3A> =
+                reader.read_normals().map_or_else(Vec::new, |n| n.map(Vec3A::from_array).collect());
+            let list: Option<Vec<u32>> = reader.read_indices().map(|i| i.into_u32().collect());
+            (positions, normals, list)
+        };
+        let Some(positions) = positions else {
+            return Err(self.fail(pwhat, "has no POSITION data"));
+        };
+        if Some(positions.len()) != prim.get(&gltf::Semantic::Positions).map(|a| a.count()) {
+            return Err(self.fail(pwhat, "the POSITION accessor reaches outside its buffer view"));
+        }
+        let normals = if normals.len() == positions.len() {
+            normals
+        } else {
+            if !normals.is_empty() {
+                self.warn(pwhat, "NORMAL count differs from POSITION count: flat shading");
+            }
+            Vec::new()
+        };
+        let list = match list {
+            Some(list) if Some(list.len()) != prim.indices().map(|a| a.count()) => {
+                return Err(self.fail(pwhat, "the index accessor reaches outside its buffer view"));
+            }
+            Some(list) => list,
+            None => (0..positions.len() as u32).collect(),
+        };
+        if let Some(i) = list.iter().find(|&&i| i as usize >= positions.len()) {
+            return Err(self.fail(pwhat, format!("index {i} is out of range ({} positions)", positions.len())));
+        }
+        Ok(Mesh { positions, normals, indices: triangulate(prim.mode(), &list) })
     }
 
     /// The slot of a glTF material, created (with its emission) on first use.
