@@ -2,13 +2,13 @@
 //! K independent passes reduced to block means with standard errors,
 //! z-scores against another estimator, an analytic value or a stored
 //! reference, the Bonferroni-corrected Student-t rule plus a chi-square check
-//! of sum z^2, and relMSE for the variance benchmarks.
+//! of the z's normal scores, and relMSE for the variance benchmarks.
 
 use crate::film::Film;
 use crate::integrators::Integrator;
 use crate::render::{render, RenderOptions, RenderStats};
 use crate::scene::Scene;
-use statrs::distribution::{ChiSquared, ContinuousCDF, StudentsT};
+use statrs::distribution::{ChiSquared, ContinuousCDF, Normal, StudentsT};
 
 /// An image as linear sRGB pixels, row-major.
 pub type Image = Vec<[f32; 3]>;
@@ -130,8 +130,10 @@ pub struct Comparison {
     /// |z| above which one comparison fails: the two-sided Student-t quantile
     /// with K-1 degrees of freedom at alpha = 0.001 / (n x family size).
     pub threshold: f64,
-    pub sum_z2: f64,
-    /// Upper-tail probability of sum z^2 under chi-square(n).
+    /// Sum over the comparisons of the squared normal score of z
+    /// (`normal_score`): chi-square(n) when the estimates agree.
+    pub chi2: f64,
+    /// Upper-tail probability of `chi2` under chi-square(n).
     pub chi2_p: f64,
     pub passed: bool,
 }
@@ -140,14 +142,14 @@ impl std::fmt::Display for Comparison {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "{}: worst |z| = {:.3} at block ({}, {}) channel {} (threshold {:.3}); sum z^2 = {:.1} over {} (p = {:.2e})",
+            "{}: worst |z| = {:.3} at block ({}, {}) channel {} (threshold {:.3}); chi-square {:.1} over {} (p = {:.2e})",
             if self.passed { "agree" } else { "DISAGREE" },
             self.worst_z,
             self.worst_at.0,
             self.worst_at.1,
             self.worst_at.2,
             self.threshold,
-            self.sum_z2,
+            self.chi2,
             self.n,
             self.chi2_p
         )
@@ -183,9 +185,10 @@ pub fn compare_to_values(a: &BlockStats, values: &[[f64; 3]], family: usize) -> 
 }
 
 fn compare_with(a: &BlockStats, family: usize, reference: impl Fn(usize) -> ([f64; 3], [f64; 3])) -> Comparison {
+    let t = StudentsT::new(0.0, 1.0, (a.k - 1) as f64).expect("Student t");
     let mut n = 0;
     let mut worst = (0.0f64, (0, 0, 0));
-    let mut sum_z2 = 0.0;
+    let mut chi2 = 0.0;
     for i in 0..a.mean.len() {
         let (rm, rs) = reference(i);
         for c in 0..3 {
@@ -194,26 +197,47 @@ fn compare_with(a: &BlockStats, family: usize, reference: impl Fn(usize) -> ([f6
             let z = if s > 0.0 {
                 diff / s
             } else if diff.abs() <= 1e-9 * rm[c].abs().max(1e-9) {
-                0.0
+                // Two exact, equal values (a channel that is 0 in every pass
+                // on both sides, as in `ColourStats::y`): nothing random was
+                // compared, so it is no degree of freedom.
+                continue;
             } else {
                 f64::INFINITY
             };
             n += 1;
-            sum_z2 += z * z;
+            chi2 += normal_score(&t, z).powi(2);
             if z.abs() > worst.0 || !z.is_finite() {
                 let (bx, by) = (i as u32 % a.blocks_x, i as u32 / a.blocks_x);
                 worst = (z.abs(), (bx, by, c));
             }
         }
     }
-    let alpha = ALPHA / (n * family) as f64;
-    let t = StudentsT::new(0.0, 1.0, (a.k - 1) as f64).expect("Student t");
+    let alpha = ALPHA / (n.max(1) * family) as f64;
     let threshold = t.inverse_cdf(1.0 - alpha / 2.0);
     let chi2_alpha = ALPHA / family as f64;
-    let chi2_p =
-        if sum_z2.is_finite() { 1.0 - ChiSquared::new(n as f64).expect("chi-square").cdf(sum_z2) } else { 0.0 };
+    let chi2_p = match n {
+        0 => 1.0,
+        _ if chi2.is_finite() => ChiSquared::new(n as f64).expect("chi-square").sf(chi2),
+        _ => 0.0,
+    };
     let passed = worst.0 <= threshold && chi2_p >= chi2_alpha;
-    Comparison { n, worst_z: worst.0, worst_at: worst.1, threshold, sum_z2, chi2_p, passed }
+    Comparison { n, worst_z: worst.0, worst_at: worst.1, threshold, chi2, chi2_p, passed }
+}
+
+/// The standard normal quantile with the same two-sided tail probability as
+/// `z` has under `t` (Student-t, K - 1 degrees of freedom): z is a
+/// difference of means over its estimated standard error, so sum z^2 is
+/// wider than chi-square(n) (with K = 16 and 16 blocks it exceeds the 0.001
+/// quantile 13 times as often against exact values, 4 times between two
+/// estimates); the sum of these scores squared is chi-square(n) when z is
+/// t-distributed. Between two estimates z is closer to normal (Welch: up to
+/// 2K - 2 degrees of freedom), so K - 1 is conservative there.
+fn normal_score(t: &StudentsT, z: f64) -> f64 {
+    let tail = t.sf(z.abs());
+    if tail >= 0.5 {
+        return 0.0;
+    }
+    -Normal::new(0.0, 1.0).expect("normal").inverse_cdf(tail)
 }
 
 /// relMSE of an image against a reference (VALIDATION.md §6): the mean over
@@ -248,11 +272,37 @@ mod tests {
         assert!(compare_to_value(&a, [1.0; 3]).passed);
         assert!(!compare_to_value(&a, [1.2; 3]).passed);
     }
+
+    /// The chi-square check holds its significance when z is Student-t: over
+    /// many null comparisons (16 blocks of 16 uniform pixels, K = 16 passes,
+    /// against the exact mean) chi2_p < 0.01 about 1 % of the time. Control:
+    /// the plain sum z^2 against chi-square(16) falls below 0.01 several
+    /// times as often. Channels that are 0 in every pass are no comparison
+    /// (as in `ColourStats::y`): n counts the 16 blocks only.
+    #[test]
+    fn chi_square_is_calibrated_for_t_distributed_z() {
+        let (trials, k) = (2000, 16);
+        let mut sampler = crate::sampling::Sampler::new(7, 0, 0);
+        let chi2_16 = ChiSquared::new(16.0).unwrap();
+        let (mut scored, mut plain) = (0, 0);
+        for _ in 0..trials {
+            let passes: Vec<Image> = (0..k).map(|_| (0..256).map(|_| [sampler.get1d(), 0.0, 0.0]).collect()).collect();
+            let a = BlockStats::from_passes(&passes, 16, 16, 4);
+            let c = compare_to_value(&a, [0.5, 0.0, 0.0]);
+            assert_eq!(c.n, 16, "the zero channels counted as comparisons");
+            scored += (c.chi2_p < 0.01) as u32;
+            let sum_z2: f64 = (0..16).map(|i| ((a.mean[i][0] - 0.5) / a.stderr[i][0]).powi(2)).sum();
+            plain += (chi2_16.sf(sum_z2) < 0.01) as u32;
+        }
+        eprintln!("chi2_p < 0.01 in {scored} of {trials} null comparisons (plain sum z^2: {plain})");
+        assert!((8..=36).contains(&scored), "{scored} of {trials} below 0.01: not calibrated");
+        assert!(plain > 2 * scored, "the plain sum z^2 ({plain}) should show the t widening");
+    }
 }
 
 /// Block statistics of an sRGB image and of its luminance Y alone (the
 /// middle row of the sRGB-to-XYZ matrix in the first channel; the others are
-/// 0 in every pass, so they add z = 0), for `Verdict`.
+/// 0 in every pass, so they are no comparison), for `Verdict`.
 #[derive(Clone, Debug)]
 pub struct ColourStats {
     pub rgb: BlockStats,
@@ -282,12 +332,12 @@ pub fn luminance(p: [f64; 3]) -> f64 {
 }
 
 /// The rule of VALIDATION.md §1 applied where its assumptions hold. The
-/// chi-square check of sum z^2 assumes n independent normal z; the three
-/// colour channels of a block come from the same samples and are strongly
-/// correlated, and z is Student-t with K-1 dof, which widens sum z^2 beyond
-/// chi-square(n) (false alarms at the percent level). So the full rule
-/// (worst |z| and chi-square) is applied to luminance, one statistic per
-/// block, and the worst-|z| rule to each sRGB channel.
+/// chi-square check assumes n independent comparisons; the three colour
+/// channels of a block come from the same samples and are strongly
+/// correlated, which widens their chi-square beyond chi-square(n) (false
+/// alarms at the percent level). So the full rule (worst |z| and
+/// chi-square) is applied to luminance, one statistic per block, and the
+/// worst-|z| rule to each sRGB channel.
 #[derive(Clone, Debug)]
 pub struct Verdict {
     pub rgb: Comparison,
