@@ -149,6 +149,24 @@ fn interior(s: &Scene, hits: &[Vec<String>], keep: impl Fn(&str) -> bool) -> Vec
         .collect()
 }
 
+/// A region of the view: its name, which first-hit materials belong to it,
+/// and the fewest interior pixels a comparison needs there.
+type Region<'a> = (&'a str, &'a dyn Fn(&str) -> bool, usize);
+
+/// The interior pixels (`interior`) of regions of the view named by their
+/// first-hit materials; panics unless each has at least its minimum count,
+/// so that a changed scene cannot leave a comparison with nothing to compare.
+fn regions<const N: usize>(s: &Scene, what: &str, regions: [Region; N]) -> [Vec<bool>; N] {
+    let hits = first_hits(s, 4);
+    regions.map(|(name, keep, min)| {
+        let mask = interior(s, &hits, keep);
+        let n = mask.iter().filter(|&&m| m).count();
+        eprintln!("{what}: {n} {name} pixels");
+        assert!(n > min, "{what} should show more than {min} {name} pixels, not {n}");
+        mask
+    })
+}
+
 fn masked(passes: &[Image], mask: &[bool]) -> Vec<Image> {
     passes.iter().map(|img| img.iter().zip(mask).map(|(p, &m)| if m { *p } else { [0.0; 3] }).collect()).collect()
 }
@@ -247,12 +265,11 @@ fn mirror_seen_directly() {
     const RES: u32 = 32;
     const BLOCK: u32 = 8;
     let s = scene("mirror-view.json", RES, RES);
-    let hits = first_hits(&s, 4);
-    let diffuse = interior(&s, &hits, |n| n != "chrome" && !n.is_empty());
-    let mirror = interior(&s, &hits, |n| n == "chrome");
-    let (nd, nm) = (diffuse.iter().filter(|&&m| m).count(), mirror.iter().filter(|&&m| m).count());
-    eprintln!("mirror-view {RES}x{RES}: {nd} diffuse-first pixels, {nm} mirror pixels");
-    assert!(nd > 300 && nm > 30, "the scene should show both: {nd} diffuse, {nm} mirror pixels");
+    let [diffuse, mirror] = regions(
+        &s,
+        "mirror-view",
+        [("diffuse-first", &|n| n != "chrome" && !n.is_empty(), 300), ("mirror", &|n| n == "chrome", 30)],
+    );
 
     let spp = |name: &str| match name {
         "simple_path" => 256,
@@ -400,12 +417,8 @@ fn tiny_lights_on_glossy_plates_agree_where_combined() {
     const RES: u32 = 32;
     const BLOCK: u32 = 8;
     let s = scene("veach-mis.json", RES, RES);
-    let hits = first_hits(&s, 4);
-    let backdrop = interior(&s, &hits, |n| n == "backdrop");
-    let plates = interior(&s, &hits, |n| n.starts_with("plate"));
-    let (nb, np) = (backdrop.iter().filter(|&&m| m).count(), plates.iter().filter(|&&m| m).count());
-    eprintln!("veach-mis {RES}x{RES}: {nb} backdrop pixels, {np} plate pixels");
-    assert!(nb > 200 && np > 20, "the view should show both: {nb} backdrop, {np} plate pixels");
+    let [backdrop, _] =
+        regions(&s, "veach-mis", [("backdrop", &|n| n == "backdrop", 200), ("plate", &|n| n.starts_with("plate"), 20)]);
     for (name, integ) in all_integrators() {
         assert!(integ.unsamplable(&s).is_empty(), "{name} warns on veach-mis: {:?}", integ.unsamplable(&s));
     }
@@ -448,12 +461,8 @@ fn sds_caustic_is_missing_identically() {
     const RES: u32 = 32;
     const BLOCK: u32 = 8;
     let s = scene("sds-point-light.json", RES, RES);
-    let hits = first_hits(&s, 4);
-    let water = interior(&s, &hits, |n| n == "water");
-    let deck = interior(&s, &hits, |n| n == "deck");
-    let (nw, nd) = (water.iter().filter(|&&m| m).count(), deck.iter().filter(|&&m| m).count());
-    eprintln!("sds-point-light {RES}x{RES}: {nw} water pixels, {nd} deck pixels");
-    assert!(nw > 100 && nd > 100, "the scene should show both: {nw} water, {nd} deck pixels");
+    let [water, deck] =
+        regions(&s, "sds-point-light", [("water", &|n| n == "water", 100), ("deck", &|n| n == "deck", 100)]);
 
     let spp = |name: &str| if name == "light" { 64 } else { 32 };
     let passes: Vec<(&str, Vec<Image>)> = INTEGRATORS
