@@ -297,6 +297,11 @@ mod tests {
         eprintln!("chi2_p < 0.01 in {scored} of {trials} null comparisons (plain sum z^2: {plain})");
         assert!((8..=36).contains(&scored), "{scored} of {trials} below 0.01: not calibrated");
         assert!(plain > 2 * scored, "the plain sum z^2 ({plain}) should show the t widening");
+        let t = StudentsT::new(0.0, 1.0, 15.0).unwrap();
+        assert_eq!(normal_score(&t, 0.0), 0.0);
+        assert_eq!(normal_score(&t, f64::INFINITY), f64::INFINITY);
+        // t_15's two-sided 1 % point (2.947) is the normal's (2.576).
+        assert!((normal_score(&t, -2.946_713) - 2.575_829).abs() < 1e-4);
     }
 }
 
