@@ -105,6 +105,30 @@ fn agreement_negative_controls() {
     }
 }
 
+/// A depth cap is part of the estimand: every integrator counts scattering
+/// events alike, so at max depth 2 (direct light and one bounce more) all of
+/// them agree with path tracing on the Cornell box. Every other test runs at
+/// depth 1024, where an off-by-one in one integrator's cap changes nothing
+/// (BDPT's `s + t - 2 >= max_depth` for `>` passed the whole suite: z 91
+/// here). Control: path at depth 3 is rejected against path at depth 2.
+#[test]
+fn every_integrator_agrees_at_a_small_max_depth() {
+    let path = stats("cornell-box.json", "path", 2, 43);
+    let family = INTEGRATORS.len();
+    let mut failures = Vec::new();
+    for i in INTEGRATORS.iter().filter(|i| i.name != "path") {
+        let c = compare_in_family(&stats("cornell-box.json", i.name, 2, 44), &path, family);
+        eprintln!("max depth 2: {} vs path: {c}", i.name);
+        if !c.passed {
+            failures.push(format!("{}: {c}", i.name));
+        }
+    }
+    let c = compare_in_family(&stats("cornell-box.json", "path", 3, 45), &path, family);
+    eprintln!("control: path at max depth 3 vs 2: {c}");
+    assert!(!c.passed, "one bounce more went unnoticed: {c}");
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
 /// Interpolated shading normals make transport non-reciprocal; with Veach's
 /// correction for adjoint transport (SurfaceInteraction::shading_correction)
 /// the estimators still agree. A smooth-shaded diffuse sphere in the Cornell
