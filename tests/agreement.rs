@@ -172,8 +172,12 @@ fn agreement_with_smooth_shading_normals() {
 /// a denser medium grows by eta^2 (Veach 1997 §5.2; radiance-mode
 /// refraction carries 1 / eta'^2, importance-mode does not): through a
 /// closed glass object in air the factors of entering and leaving cancel,
-/// here every path crosses once, so an estimator using the wrong transport
-/// mode would be off by eta^2 = 2.25. Path, BDPT and light tracing agree.
+/// here every path crosses once, so an estimator passing the wrong
+/// transport mode (radiance walks in importance mode, or the reverse) would
+/// be off by eta^2 = 2.25 against the others. Path, BDPT and light tracing
+/// agree. (A BTDF whose two modes are swapped for every caller keeps the
+/// estimators in agreement, each wrong by eta^2 the same way: that is
+/// bsdf_props's `rough_transmission_eta2_only_in_radiance_mode` to catch.)
 /// Premise control: with the interface turned over (camera and floor in
 /// air, light in glass) path's image changes by ~eta^4; a BTDF without the
 /// eta^2 factor is symmetric and would render both the same.
