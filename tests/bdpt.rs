@@ -15,7 +15,7 @@ mod scenes;
 use glam::{Vec2, Vec3A};
 use prism::camera::Camera;
 use prism::film::Film;
-use prism::integrators::{self, init_mis, mis_weight, Integrator, IntegratorOptions, MisHeuristic, Subpath};
+use prism::integrators::{init_mis, mis_weight, MisHeuristic, Subpath};
 use prism::materials::{Bsdf, Conductor, Dielectric, Diffuse, Mirror, TransportMode};
 use prism::path::{camera_subpath, light_subpath, Vertex, VertexKind};
 use prism::render::{render, render_with_strategies, RenderOptions, StrategyImages};
@@ -24,7 +24,7 @@ use prism::scene::{Scene, SceneBuilder};
 use prism::shapes::Mesh;
 use prism::spectrum::{SampledWavelengths, Spectrum};
 use prism::stats::{rel_mse, render_passes, ColourStats, Image, Verdict};
-use scenes::{integrator, scene, seed, srgb_of, stats, versus};
+use scenes::{bdpt, integrator, scene, seed, srgb_of, stats, versus};
 use std::sync::OnceLock;
 
 const K: u32 = 16;
@@ -32,10 +32,6 @@ const K: u32 = 16;
 /// Against an exact colour: sRGB and luminance of `spectrum`.
 fn versus_spectrum(a: &ColourStats, spectrum: &Spectrum) -> Verdict {
     Verdict::versus_value(a, srgb_of(spectrum), 1)
-}
-
-fn bdpt(mis: MisHeuristic) -> Box<dyn Integrator> {
-    integrators::create("bdpt", &IntegratorOptions { mis, ..Default::default() }).unwrap()
 }
 
 /// A closed box seen from inside, every face emitting `le` (one-sided,

@@ -35,11 +35,11 @@ mod scenes;
 
 use glam::{DMat3, DVec3, Vec2};
 use prism::film::Film;
-use prism::integrators::{Integrator, IntegratorOptions, MisHeuristic, INTEGRATORS};
+use prism::integrators::{Integrator, MisHeuristic, INTEGRATORS};
 use prism::render::{render, RenderOptions};
 use prism::scene::{parse_scene, Scene};
 use prism::stats::{compare_in_family, BlockStats, ColourStats, Comparison, Image, Verdict};
-use scenes::{integrator, scene};
+use scenes::{bdpt, integrator, scene};
 use std::path::Path;
 use std::process::Command;
 
@@ -407,10 +407,6 @@ fn caustic_and_gap_room_agree_where_sampled() {
 /// simple_path, which must hit a 0.02 light by BSDF sampling, is checked for
 /// bad numbers only (its block means are heavy-tailed here).
 type Run<'a> = (&'a str, Box<dyn Integrator>, u32, Option<&'a [bool]>);
-
-fn bdpt(mis: MisHeuristic) -> Box<dyn Integrator> {
-    prism::integrators::create("bdpt", &IntegratorOptions { mis, ..Default::default() }).unwrap()
-}
 
 #[test]
 fn tiny_lights_on_glossy_plates_agree_where_combined() {

@@ -3,7 +3,7 @@
 //! statistics of 32 x 32 renders.
 #![allow(dead_code)]
 
-use prism::integrators::{self, Integrator, IntegratorOptions};
+use prism::integrators::{self, Integrator, IntegratorOptions, MisHeuristic};
 use prism::scene::{load_scene, parse_scene, Scene};
 use prism::spectrum::{spectrum_to_xyz, xyz_to_linear_srgb, Spectrum};
 use prism::stats::{ColourStats, Image, Verdict};
@@ -31,6 +31,11 @@ pub fn scene_variant(name: &str, width: u32, height: u32, from: &str, to: &str) 
 
 pub fn integrator(name: &str) -> Box<dyn Integrator> {
     integrators::create(name, &IntegratorOptions::default()).unwrap()
+}
+
+/// BDPT with the MIS heuristic `mis`.
+pub fn bdpt(mis: MisHeuristic) -> Box<dyn Integrator> {
+    integrators::create("bdpt", &IntegratorOptions { mis, ..Default::default() }).unwrap()
 }
 
 /// Linear sRGB of a spectrum's exact colour (1 nm sums).
