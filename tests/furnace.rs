@@ -190,6 +190,52 @@ fn lossless_objects_vanish_for_every_integrator() {
     run(&cases);
 }
 
+/// VALIDATION.md §2, glass from inside: a pinhole at the centre of a closed,
+/// smooth, non-absorbing glass sphere in the furnace. Radiance crossing into
+/// a denser medium grows by eta^2 (Veach 1997 §5.2) and every path leaves
+/// the glass in the end, so every pixel reads eta^2 = 2.25 times the
+/// environment: an analytic answer for radiance-mode refraction, whose
+/// factors cancel when glass is seen from outside (the lossless cases above
+/// would pass with them wrong). The dispersive glass reads eta(lambda)^2 at
+/// each wavelength: the colour of that spectrum, from the glass's own index
+/// table. Light tracing cannot reach a pinhole inside glass; it must say so.
+#[test]
+fn glass_seen_from_inside_reads_eta_squared() {
+    let blocks = ((RES / BLOCK) * (RES / BLOCK)) as usize;
+    let inside = |bsdf: &Bsdf| {
+        let camera = Camera::new(Vec3A::ZERO, Vec3A::Z, Vec3A::Y, 60.0, RES, RES);
+        let mut b = SceneBuilder::new(camera);
+        let m = b.material("glass", bsdf.clone());
+        b.mesh("sphere around the camera", Mesh::sphere(Vec3A::ZERO, 1.0, 4, false), m, None);
+        b.environment("sky", Spectrum::Constant(1.0));
+        b.build()
+    };
+    let eta_squared = |bsdf: &Bsdf| match bsdf {
+        Bsdf::Dielectric(d) => Spectrum::from_fn(|l| d.eta.eval(l).powi(2)),
+        _ => unreachable!("glass only"),
+    };
+    let mut cases = Vec::new();
+    for (what, bsdf, spp) in
+        [("glass eta 1.5", dielectric(1.5, 0.0, 0.0), 16), ("dispersive glass", dispersive_dielectric(0.0), 256)]
+    {
+        let scene = inside(&bsdf);
+        let light = integrators::create("light", &IntegratorOptions::default()).unwrap();
+        assert!(!light.unsamplable(&scene).is_empty(), "light tracing does not warn of the pinhole inside {what}");
+        let expected = vec![srgb_of(&eta_squared(&bsdf)); blocks];
+        for integrator in ["simple_path", "path", "bdpt"] {
+            let scene = inside(&bsdf);
+            cases.push(Case {
+                what: format!("{what} from inside"),
+                scene,
+                integrator,
+                spp,
+                expected: expected.clone(),
+            });
+        }
+    }
+    run(&cases);
+}
+
 /// A 0.6 x 0.6 quad of `bsdf` in the z = 0 plane, normal +z, seen from 0.6
 /// away at `theta_deg` (at most 60) from its normal with a 12-degree field
 /// of view, which the quad fills. Small and close, so that light tracing's
