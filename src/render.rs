@@ -8,8 +8,8 @@
 //! (film.rs), so no result depends on which thread ran what, nor on how the
 //! sample indices were split into chunks, checkpoints or parts: the same
 //! scene, seed and samples give bit-identical images at any thread count.
-//! Tiles are still processed in fixed-size batches merged in tile order, for
-//! the f64 per-strategy images below.
+//! Tiles are still merged in tile order (`TileQueue`), for the f64
+//! per-strategy images below.
 //!
 //! Per-strategy images (`render_with_strategies`, BDPT's `--strategies`):
 //! the integrator appends a small `StrategyRecord` per strategy to the
@@ -26,16 +26,14 @@ use crate::scene::Scene;
 use crate::spectrum::{SampledSpectrum, SampledWavelengths};
 use glam::{UVec2, Vec2, Vec3};
 use indicatif::{ProgressBar, ProgressStyle};
-use rayon::prelude::*;
 use rayon::ThreadPool;
 use std::collections::BTreeMap;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
+use std::sync::{Condvar, Mutex};
 use std::time::{Duration, Instant};
 
 const TILE: u32 = 16;
-/// Tiles per merge batch: bounds the memory held by pending splats.
-const BATCH: usize = 64;
 
 /// A contribution to the pixel that contains `raster` (box filter), from any
 /// sample of the image (light tracing, BDPT's t = 1 strategy).
@@ -269,43 +267,141 @@ fn render_impl(
     seed: u64,
     film: &mut Film,
     samples: Range<u32>,
-    mut strategies: Option<&mut StrategyImages>,
+    strategies: Option<&mut StrategyImages>,
 ) -> RenderStats {
     let record = strategies.is_some();
     let start = Instant::now();
-    let (w, h) = (film.width, film.height);
-    let mut rays = 0;
-    pool.install(|| {
-        for batch in tiles.chunks(BATCH) {
-            let outputs: Vec<TileOutput> = batch
-                .par_iter()
-                .map_init(Workspace::default, |ws, &(origin, size)| {
-                    if record && ws.strategies.is_none() {
-                        ws.strategies = Some(Vec::new());
-                    }
-                    let out = render_tile(scene, integrator, seed, ws, film.width, origin, size, samples.clone());
-                    bar.inc(1);
-                    out
-                })
-                .collect();
-            for mut out in outputs {
-                rays += out.rays;
-                if let (Some(images), Some(tile)) = (strategies.as_deref_mut(), out.strategies.take()) {
-                    merge_tile_strategies(images, &out, tile);
-                }
-                merge_tile(film, out, samples.len() as u64);
-            }
-        }
+    let (w, h, spp) = (film.width, film.height, samples.len() as u64);
+    let queue = TileQueue::new(tiles.len(), Merge { film, strategies, spp, rays: 0 });
+    pool.broadcast(|_| {
+        let mut ws = Workspace { strategies: record.then(Vec::new), ..Workspace::default() };
+        queue.work(|i| {
+            let (origin, size) = tiles[i];
+            let out = render_tile(scene, integrator, seed, &mut ws, w, origin, size, samples.clone());
+            bar.inc(1);
+            out
+        });
     });
-    film.spp += samples.len() as u64;
+    let Merge { film, strategies, rays, .. } = queue.into_merge();
+    film.spp += spp;
     if let Some(images) = strategies {
-        images.spp += samples.len() as u64;
+        images.spp += spp;
     }
-    RenderStats {
-        wall: start.elapsed(),
-        samples: samples.len() as u64 * w as u64 * h as u64,
-        rays,
-        threads: pool.current_num_threads(),
+    RenderStats { wall: start.elapsed(), samples: spp * w as u64 * h as u64, rays, threads: pool.current_num_threads() }
+}
+
+/// Where finished tiles go: the film, the per-strategy images, the ray count.
+struct Merge<'a> {
+    film: &'a mut Film,
+    strategies: Option<&'a mut StrategyImages>,
+    /// Camera samples per pixel in this render call.
+    spp: u64,
+    rays: u64,
+}
+
+impl Merge<'_> {
+    fn add(&mut self, mut out: TileOutput) {
+        self.rays += out.rays;
+        if let (Some(images), Some(tile)) = (self.strategies.as_deref_mut(), out.strategies.take()) {
+            merge_tile_strategies(images, &out, tile);
+        }
+        merge_tile(self.film, out, self.spp);
+    }
+}
+
+/// Tiles handed out in order and merged in order, with no barrier: a worker
+/// takes the next tile as soon as it is free, and a finished tile waits only
+/// for the tiles before it. The merge order (tile order) is what makes the
+/// per-strategy f64 sums, and the film's drop decisions, independent of the
+/// thread count. At most `WINDOW` tiles are taken but not yet merged, which
+/// bounds the memory held by their splats. (Batches of tiles with a barrier
+/// after each, as before, left a core idle at every barrier: 3 % of a Cornell
+/// box render on 2 threads.)
+struct TileQueue<'a> {
+    state: Mutex<QueueState<'a>>,
+    merged: Condvar,
+    len: usize,
+}
+
+struct QueueState<'a> {
+    /// The next tile to hand out.
+    next: usize,
+    /// Tiles before this one are in the merge.
+    merged: usize,
+    finished: BTreeMap<usize, TileOutput>,
+    merge: Merge<'a>,
+    /// A worker panicked: the others stop taking tiles (and stop waiting
+    /// for one that will never be merged).
+    abandoned: bool,
+}
+
+/// Tiles taken but not yet merged, at most.
+const WINDOW: usize = 64;
+
+impl<'a> TileQueue<'a> {
+    fn new(len: usize, merge: Merge<'a>) -> Self {
+        let state = QueueState { next: 0, merged: 0, finished: BTreeMap::new(), merge, abandoned: false };
+        Self { state: Mutex::new(state), merged: Condvar::new(), len }
+    }
+
+    /// A worker's loop: renders tiles until none is left.
+    fn work(&self, mut render: impl FnMut(usize) -> TileOutput) {
+        let _abandon = AbandonOnPanic(self);
+        while let Some(i) = self.take() {
+            let out = render(i);
+            self.finish(i, out);
+        }
+    }
+
+    /// The next tile to render, once it is within `WINDOW` of the merge;
+    /// `None` when all are taken.
+    fn take(&self) -> Option<usize> {
+        let mut st = self.lock();
+        while st.next < self.len && st.next >= st.merged + WINDOW && !st.abandoned {
+            st = self.merged.wait(st).unwrap_or_else(|e| e.into_inner());
+        }
+        (st.next < self.len && !st.abandoned).then(|| {
+            st.next += 1;
+            st.next - 1
+        })
+    }
+
+    /// Tile `i`'s output; merges every finished tile that no earlier one
+    /// still holds back.
+    fn finish(&self, i: usize, out: TileOutput) {
+        let mut st = self.lock();
+        st.finished.insert(i, out);
+        loop {
+            let next = st.merged;
+            let Some(out) = st.finished.remove(&next) else { break };
+            st.merge.add(out);
+            st.merged += 1;
+        }
+        drop(st);
+        self.merged.notify_all();
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, QueueState<'a>> {
+        self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    fn into_merge(self) -> Merge<'a> {
+        let st = self.state.into_inner().unwrap_or_else(|e| e.into_inner());
+        assert!(!st.abandoned && st.merged == self.len, "{} of {} tiles merged", st.merged, self.len);
+        st.merge
+    }
+}
+
+/// Tells the other workers to stop when a tile's render panics, so none
+/// waits for the lost tile's merge (the pool then re-raises the panic).
+struct AbandonOnPanic<'q, 'a>(&'q TileQueue<'a>);
+
+impl Drop for AbandonOnPanic<'_, '_> {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            self.0.lock().abandoned = true;
+            self.0.merged.notify_all();
+        }
     }
 }
 
