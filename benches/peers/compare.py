@@ -76,6 +76,8 @@ def main():
         ("prism-path", "mitsuba-llvm-path", 2.0),
         ("prism-path", "mitsuba-scalar-path", None),
         ("prism-light", "mitsuba-llvm-ptracer", 2.0),
+        ("prism-pgo-path", "mitsuba-llvm-path", 2.0),
+        ("prism-pgo-light", "mitsuba-llvm-ptracer", 2.0),
     ]
     print("\n| ratio (prism / Mitsuba) | samples/s (wall) | samples/CPU-s | efficiency (equal time) | target (samples/s) |")
     print("|---|---:|---:|---:|---:|")
@@ -88,9 +90,10 @@ def main():
             eff = ra["efficiency"] / rb["efficiency"]
             ratios.append({"prism": a, "mitsuba": b, "wall": wall, "cpu": cpu, "efficiency": eff, "target": target})
             print(f"| {ra['label']} / {rb['label']} | {wall:.2f}x | {cpu:.2f}x | {eff:.2f}x | {f'>= {target:.0f}x' if target else '-'} |")
-    if "prism-bdpt" in by_key:
-        r = by_key["prism-bdpt"]
-        print(f"\nprism bdpt: {r['samples'] / r['wall_seconds'] / 1e6:.3f} Msamples/s (target >= 1)")
+    for key in ["prism-bdpt", "prism-pgo-bdpt"]:
+        if key in by_key:
+            r = by_key[key]
+            print(f"\n{r['label']}: {r['samples'] / r['wall_seconds'] / 1e6:.3f} Msamples/s (target >= 1)")
     (out / "results.json").write_text(json.dumps({"runs": rows, "ratios": ratios}, indent=2) + "\n")
 
 

@@ -17,7 +17,9 @@
 # Environment: SPP (64), RES (256), THREADS (2), REF_SPP (2048), ROUNDS (1:
 # with more, every renderer runs ROUNDS times, interleaved, and the fastest
 # round counts), SCENE (scenes/cornell-box.json), OUT (target/peers), VENV
-# (target/peers-venv).
+# (target/peers-venv), PGO (0: with 1, scripts/pgo-build.sh makes a
+# profile-guided build too, and its path, light and bdpt run beside the plain
+# build's in every round; ~5 minutes more).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 
@@ -74,6 +76,11 @@ export DRJIT_LIBLLVM_PATH
 # --- 3. prism and the exported scene
 CARGO_BUILD_JOBS=${CARGO_BUILD_JOBS:-1} cargo build --release --quiet
 PRISM=target/release/prism
+PGO=${PGO:-0}
+if [[ $PGO == 1 ]]; then
+    echo "== profile-guided build (scripts/pgo-build.sh)"
+    scripts/pgo-build.sh >/dev/null
+fi
 mkdir -p "$OUT/runs" "$OUT/images"
 rm -f "$OUT"/runs/*.json
 "$PRISM" export-mitsuba "$SCENE" "$OUT/mitsuba-scene" --width "$RES" --height "$RES" --spp "$SPP"
@@ -107,10 +114,10 @@ print(f"   {key}: {r['wall_seconds']:.2f} s{first}, CPU {r['cpu_seconds']:.2f} s
 PYEOF
 }
 
-prism_run() { # KEY INTEGRATOR ROUND
-    local exr="$OUT/images/$1-r$3.exr" t
+prism_run() { # KEY INTEGRATOR ROUND [BINARY]
+    local exr="$OUT/images/$1-r$3.exr" t bin=${4:-$PRISM}
     t=$(mktemp)
-    /usr/bin/time -f '%U %S' -o "$t" "$PRISM" render "$SCENE" --integrator "$2" --spp "$SPP" --width "$RES" \
+    /usr/bin/time -f '%U %S' -o "$t" "$bin" render "$SCENE" --integrator "$2" --spp "$SPP" --width "$RES" \
         --height "$RES" --threads "$THREADS" --seed "$3" --quiet --out "$exr"
     local json
     json=$("$PY" - "$exr" "$t" "$1" "$2" <<'PYEOF'
@@ -118,7 +125,8 @@ import json, sys
 exr, t, key, integrator = sys.argv[1:]
 side = json.load(open(exr.replace(".exr", ".json")))
 user, sys_ = map(float, open(t).read().split()[-2:])
-print(json.dumps({"key": key, "label": f"prism {integrator}", "out": exr, "samples": side["spp"] * side["width"] * side["height"],
+label = f"prism {integrator}" + (" (PGO build)" if key.startswith("prism-pgo") else "")
+print(json.dumps({"key": key, "label": label, "out": exr, "samples": side["spp"] * side["width"] * side["height"],
                   "wall_seconds": side["wall_seconds"], "cpu_seconds": user + sys_, "first_seconds": None,
                   "note": "CPU s: whole process (scene load and BVH build included, a few ms)"}))
 PYEOF
@@ -156,6 +164,11 @@ for round in $(seq 1 "$ROUNDS"); do
     prism_run prism-light light "$round"
     mitsuba_run mitsuba-llvm-ptracer llvm_ad_spectral ptracer "$round"
     prism_run prism-bdpt bdpt "$round"
+    if [[ $PGO == 1 ]]; then
+        for integrator in path light bdpt; do
+            prism_run "prism-pgo-$integrator" "$integrator" "$round" target/pgo/prism
+        done
+    fi
 done
 
 # --- 5. reference and table
