@@ -129,7 +129,24 @@ pub fn export(scene: &Scene, dir: &Path, spp: u32) -> Result<usize> {
     let _ = writeln!(xml, "</scene>");
     let path = dir.join("scene.xml");
     write_bytes(&path, xml.as_bytes())?;
+    remove_stale_meshes(&mesh_dir, groups.len())?;
     Ok(groups.len())
+}
+
+/// Removes the meshes an earlier export of a scene with more groups left
+/// behind (`meshes/NNN.ply` from `count` on; nothing else is touched), so
+/// the directory holds exactly what scene.xml names.
+fn remove_stale_meshes(mesh_dir: &Path, count: usize) -> Result<()> {
+    let listing = std::fs::read_dir(mesh_dir).with_context(|| format!("cannot list {}", mesh_dir.display()))?;
+    for entry in listing {
+        let path = entry.with_context(|| format!("cannot list {}", mesh_dir.display()))?.path();
+        let name = path.file_name().and_then(|n| n.to_str()).unwrap_or_default();
+        let index = name.strip_suffix(".ply").filter(|k| k.len() == 3).and_then(|k| k.parse::<usize>().ok());
+        if index.is_some_and(|k| k >= count) {
+            std::fs::remove_file(&path).with_context(|| format!("cannot remove {}", path.display()))?;
+        }
+    }
+    Ok(())
 }
 
 /// Only one-sided area lights have a Mitsuba equivalent here.

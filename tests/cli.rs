@@ -226,6 +226,36 @@ fn grown_parts_and_ignored_options_merge() {
     let _ = std::fs::remove_dir_all(&d);
 }
 
+/// An export over an earlier one leaves exactly the meshes its scene.xml
+/// names: an earlier export's higher-numbered `meshes/NNN.ply` are removed
+/// (Mitsuba would not read them, but a reader of the directory would), and
+/// files the exporter does not name that way are kept.
+#[test]
+fn export_mitsuba_leaves_exactly_its_meshes() {
+    let d = temp_dir("export-stale");
+    let dir = d.join("export");
+    let o = prism(&["export-mitsuba", "scenes/cornell-box.json", &dir.display().to_string()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let xml = std::fs::read_to_string(dir.join("scene.xml")).unwrap();
+    let named = xml.matches("meshes/").count();
+    assert!(named > 1, "{xml}");
+    for stray in ["999.ply", "notes.txt", "0001.ply"] {
+        std::fs::write(dir.join("meshes").join(stray), b"not ours").unwrap();
+    }
+    let o = prism(&["export-mitsuba", "scenes/cornell-box.json", &dir.display().to_string()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mut left: Vec<String> = std::fs::read_dir(dir.join("meshes"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    left.sort();
+    let mut want: Vec<String> = (0..named).map(|k| format!("{k:03}.ply")).collect();
+    want.extend(["0001.ply".to_string(), "notes.txt".to_string()]);
+    want.sort();
+    assert_eq!(left, want);
+    let _ = std::fs::remove_dir_all(&d);
+}
+
 /// The smaller subcommands refuse what they cannot do before writing
 /// anything (from an audit): `export-mitsuba` of a non-diffuse scene used
 /// to write some meshes first (over an earlier export's), and took a zero
