@@ -79,8 +79,18 @@ const CASES: &[Case] = &[
         out: "out.exr",
         position: "s.json:3:",
         words: &[
-            "materials.white: invalid type: sequence, expected a number, a spectrum name, or an object with one of",
+            "materials.white.reflectance: invalid type: sequence, expected a number, a spectrum name, or an object with one of",
         ],
+    },
+    Case {
+        // Inside a tagged object (a shape): the error is at the value's own
+        // line, 4, not at the object's closing brace on line 5.
+        id: "tagged-field-type",
+        edits: &[("\"radius\": 1}", "\"radius\": \"1\",\n \"subdivisions\": 2}")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:4:",
+        words: &["objects[0].shape.radius: invalid type: string \"1\", expected f32"],
     },
     Case {
         id: "missing-field",
@@ -96,7 +106,7 @@ const CASES: &[Case] = &[
         args: &[],
         out: "out.exr",
         position: "s.json:3:",
-        words: &["materials.white", "unknown variant `plastic`", "dielectric"],
+        words: &["materials.white.type: unknown variant `plastic`", "dielectric"],
     },
     Case {
         id: "unknown-glass",
@@ -179,7 +189,7 @@ const CASES: &[Case] = &[
         position: "s.json:5:",
         // (A light is an internally tagged enum: the path stops at it; the
         // position is the spectrum's.)
-        words: &["lights[0]: duplicate name \"rgb\""],
+        words: &["lights[0].radiance: duplicate name \"rgb\""],
     },
     Case {
         id: "duplicate-material-override",
@@ -190,7 +200,7 @@ const CASES: &[Case] = &[
         args: &[],
         out: "out.exr",
         position: "s.json:4:",
-        words: &["objects[0].shape: duplicate name \"#0\""],
+        words: &["objects[0].shape.materials: duplicate name \"#0\""],
     },
     Case {
         id: "index-out-of-range",

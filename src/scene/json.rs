@@ -7,6 +7,7 @@
 //! `scenes/x.json:14:9: materials.glass.ior: unknown spectrum "BK8" (known: ...)`.
 
 use super::locate::{locate, path_string, Seg};
+use super::tagged::tagged_enum;
 use super::{RenderDefaults, SceneBuilder};
 use crate::camera::Camera;
 use crate::materials::{roughness_to_alpha, Bsdf, Conductor, Dielectric, Diffuse, Mirror};
@@ -122,14 +123,19 @@ struct RenderSpec {
     seed: Option<u64>,
 }
 
-#[derive(Deserialize)]
-#[serde(tag = "type", rename_all = "snake_case")]
 enum MaterialSpec {
     Diffuse(DiffuseSpec),
     Conductor(ConductorSpec),
     Dielectric(DielectricSpec),
     Mirror(MirrorSpec),
 }
+
+tagged_enum!(MaterialSpec, "a material", {
+    "diffuse" => Diffuse(DiffuseSpec),
+    "conductor" => Conductor(ConductorSpec),
+    "dielectric" => Dielectric(DielectricSpec),
+    "mirror" => Mirror(MirrorSpec),
+});
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -203,8 +209,6 @@ struct ObjectSpec {
     transform: Option<TransformSpec>,
 }
 
-#[derive(Deserialize)]
-#[serde(tag = "type", rename_all = "snake_case")]
 enum ShapeSpec {
     Quad(QuadSpec),
     Cuboid(CuboidSpec),
@@ -213,6 +217,15 @@ enum ShapeSpec {
     Obj(ObjSpec),
     Gltf(GltfSpec),
 }
+
+tagged_enum!(ShapeSpec, "a shape", {
+    "quad" => Quad(QuadSpec),
+    "cuboid" => Cuboid(CuboidSpec),
+    "sphere" => Sphere(SphereSpec),
+    "mesh" => Mesh(InlineMeshSpec),
+    "obj" => Obj(ObjSpec),
+    "gltf" => Gltf(GltfSpec),
+});
 
 /// A glTF file as one object (docs/scene-format.md, "glTF scenes").
 #[derive(Deserialize)]
@@ -300,12 +313,15 @@ struct RotateSpec {
     degrees: f32,
 }
 
-#[derive(Deserialize)]
-#[serde(tag = "type", rename_all = "snake_case")]
 enum LightSpec {
     Point(PointSpec),
     Environment(EnvironmentSpec),
 }
+
+tagged_enum!(LightSpec, "a light", {
+    "point" => Point(PointSpec),
+    "environment" => Environment(EnvironmentSpec),
+});
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]

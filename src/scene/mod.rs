@@ -5,6 +5,7 @@
 mod gltf;
 mod json;
 pub mod locate;
+mod tagged;
 
 pub use self::gltf::{gltf_conductor_eta_k, load_gltf, parse_gltf, GltfScene};
 pub use json::{load_scene, parse_scene, LoadError};
