@@ -167,6 +167,57 @@ fn agreement_with_smooth_shading_normals() {
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
+/// A two-sided emitter: the Cornell box's light hung edge-on to the camera
+/// in the middle of the room, one face lighting the red wall, the other the
+/// green one. `simple_path` finds emitters only by BSDF sampling, so it
+/// shares no light-sampling density with the others; `path` (NEE: both
+/// faces accepted, the same area pdf), `light` (emission from a face chosen
+/// with probability 1/2) and `bdpt` (both, and the walk densities) must agree
+/// with it. No other image test has a two-sided emitter: a forgotten 1/2 in
+/// the face choice doubled light tracing's emission and passed the suite
+/// (docs/validation.md, "Mutation testing"). Controls: the same light
+/// one-sided (the green wall goes dark) and bdpt x1.02 are rejected.
+#[test]
+fn a_two_sided_emitter_agrees_across_integrators() {
+    let light = |two_sided: bool| {
+        let hung = "[278.0, 380.0, 100.0], [278.0, 500.0, 100.0], [278.0, 500.0, 230.0], [278.0, 380.0, 230.0]";
+        let ceiling = "[343.0, 548.7, 227.0],\n          [343.0, 548.7, 332.0],\n          [213.0, 548.7, 332.0],\n          [213.0, 548.7, 227.0]";
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.json");
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.contains(ceiling) && text.contains("\"emission\": \"light\""));
+        let sides = if two_sided { "\"emission\": \"light\", \"two_sided\": true" } else { "\"emission\": \"light\"" };
+        let text = text.replace(ceiling, hung).replace("\"emission\": \"light\"", sides);
+        let mut b = prism::scene::parse_scene(&text, "cornell-box.json", path.parent().unwrap()).unwrap();
+        b.set_resolution(RES, RES);
+        b.build()
+    };
+    let (two, one) = (light(true), light(false));
+    let stats = |s: &prism::scene::Scene, name: &str, spp: u32, seed: u64| {
+        let integ = integrators::create(name, &IntegratorOptions::default()).unwrap();
+        BlockStats::from_passes(&render_passes(s, integ.as_ref(), spp, K, seed, 0), RES, RES, BLOCK)
+    };
+    let simple = stats(&two, "simple_path", 256, 60);
+    let mut failures = Vec::new();
+    let mut bdpt = None;
+    for (name, spp) in [("path", 32), ("light", 32), ("bdpt", 32)] {
+        let st = stats(&two, name, spp, 61);
+        let c = compare_in_family(&st, &simple, 3);
+        eprintln!("two-sided emitter: {name} vs simple_path: {c}");
+        if !c.passed {
+            failures.push(format!("{name}: {c}"));
+        }
+        bdpt = Some(st);
+    }
+    for (what, control) in [("one-sided", stats(&one, "path", 32, 62)), ("bdpt x1.02", bdpt.unwrap().scaled(1.02))] {
+        let c = compare_in_family(&control, &simple, 3);
+        eprintln!("two-sided emitter: {what} vs simple_path (control): {c}");
+        if c.passed {
+            failures.push(format!("control {what} passed: {c}"));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
 /// The camera and a diffuse floor below one rough glass interface (GGX,
 /// alpha 0.3, eta 1.5), the light above it in air. Radiance crossing into
 /// a denser medium grows by eta^2 (Veach 1997 §5.2; radiance-mode
