@@ -624,14 +624,21 @@ fn ndf_projected_area_is_one() {
 /// 1; transmission has probability T = 1 - R and weight 1/eta'^2 in radiance
 /// mode, 1 in importance mode; eta' is reported; Snell's law holds.
 fn check_smooth_dielectric(b: &dyn TestBsdf, eta: f32, wo: Vec3A) -> Result<(), String> {
-    let r = fr_dielectric(wo.z, eta);
+    // R from the f64 complex Fresnel below, not the renderer's own function.
+    let (n_from, n_to) = if wo.z > 0.0 { (1.0, eta as f64) } else { (eta as f64, 1.0) };
+    let r = fresnel_dielectric64(wo.z as f64, n_from, n_to) as f32;
+    // eta = 1 (R = 0 exactly in the renderer) leaves 1e-29 of f64 rounding.
+    let r = if r < 1e-12 { 0.0 } else { r };
+    // f32 against f64: near grazing with eta ~ 1 the renderer's cos_t
+    // loses digits (R 0.006180 for 0.006177 at eta 1.0001, cos 0.027).
+    let r_tol = 1e-6 + 1e-3 * r.min(1.0 - r);
     for mode in MODES {
         let mut expected_weight = 0.0;
         let mut total = 0.0;
         if r > 0.0 {
             let s = b.sample(wo, 0.0, Vec2::ZERO, mode).ok_or("no reflection")?;
             let w = s.f[0] * s.wi.z.abs() / s.pdf;
-            if s.flags != BsdfFlags::SPECULAR_REFLECTION || (s.pdf - r).abs() > 1e-6 || (w - 1.0).abs() > 1e-5 {
+            if s.flags != BsdfFlags::SPECULAR_REFLECTION || (s.pdf - r).abs() > r_tol || (w - 1.0).abs() > 1e-5 {
                 return Err(format!("reflection {s:?}: weight {w}, R = {r}"));
             }
             if s.eta != 1.0 || (s.wi - Vec3A::new(-wo.x, -wo.y, wo.z)).length() > 1e-6 {
@@ -646,7 +653,7 @@ fn check_smooth_dielectric(b: &dyn TestBsdf, eta: f32, wo: Vec3A) -> Result<(), 
             let w = s.f[0] * s.wi.z.abs() / s.pdf;
             let want = if mode == TransportMode::Radiance { 1.0 / (etap * etap) } else { 1.0 };
             if s.flags != BsdfFlags::SPECULAR_TRANSMISSION
-                || (s.pdf - (1.0 - r)).abs() > 1e-6
+                || (s.pdf - (1.0 - r)).abs() > r_tol
                 || rel_diff(w, want, 1e-9) > 1e-5
             {
                 return Err(format!("{mode:?} transmission {s:?}: weight {w}, want {want}, T = {}", 1.0 - r));
@@ -660,7 +667,7 @@ fn check_smooth_dielectric(b: &dyn TestBsdf, eta: f32, wo: Vec3A) -> Result<(), 
             total += s.pdf * w;
             expected_weight += (1.0 - r) * want;
         }
-        if (total - expected_weight).abs() > 1e-5 {
+        if (total - expected_weight).abs() > 1e-5 + r_tol {
             return Err(format!("{mode:?}: expected throughput {total} != R + T w_T = {expected_weight}"));
         }
     }
