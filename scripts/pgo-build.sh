@@ -14,8 +14,9 @@
 #    rustc's LLVM) merges the counters; the final build (target/pgo/use)
 #    reads them;
 # 4. a check: the PGO binary and `cargo build --release`'s render the Cornell
-#    box bit for bit alike with every integrator (PGO changes code layout and
-#    inlining, never floating-point semantics), else the script fails.
+#    box and the dispersive prism bit for bit alike with every integrator (PGO
+#    changes code layout and inlining, never floating-point semantics), else
+#    the script fails.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -56,15 +57,17 @@ cp "$OUT/use/release/prism" "$OUT/prism"
 
 echo "== 4. same pixels as the plain release build"
 cargo build --release --quiet
-for integrator in path light bdpt; do
-    for bin in target/release/prism "$OUT/prism"; do
-        "$bin" render scenes/cornell-box.json --integrator "$integrator" --spp 4 --width 64 --height 64 \
-            --threads 2 --quiet --out "$OUT/check-$(basename "$(dirname "$bin")").exr" >/dev/null
+for scene in cornell-box prism-dispersion; do
+    for integrator in path light bdpt; do
+        for bin in target/release/prism "$OUT/prism"; do
+            "$bin" render "scenes/$scene.json" --integrator "$integrator" --spp 4 --width 64 --height 64 \
+                --threads 2 --quiet --out "$OUT/check-$(basename "$(dirname "$bin")").exr" >/dev/null 2>&1
+        done
+        diff=$(target/release/prism compare "$OUT/check-release.exr" "$OUT/check-pgo.exr")
+        if [[ $diff != *" MSE 0.000000e0  MAE 0.000000e0"* ]]; then
+            echo "error: $scene, $integrator: the PGO build's pixels differ from the release build's: $diff" >&2
+            exit 1
+        fi
     done
-    diff=$(target/release/prism compare "$OUT/check-release.exr" "$OUT/check-pgo.exr")
-    if [[ $diff != *" MSE 0.000000e0  MAE 0.000000e0"* ]]; then
-        echo "error: $integrator: the PGO build's pixels differ from the release build's: $diff" >&2
-        exit 1
-    fi
 done
 echo "$OUT/prism"
