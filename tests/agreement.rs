@@ -179,36 +179,29 @@ fn agreement_with_smooth_shading_normals() {
 /// one-sided (the green wall goes dark) and bdpt x1.02 are rejected.
 #[test]
 fn a_two_sided_emitter_agrees_across_integrators() {
-    let light = |two_sided: bool| {
-        let hung = "[278.0, 380.0, 100.0], [278.0, 500.0, 100.0], [278.0, 500.0, 230.0], [278.0, 380.0, 230.0]";
-        let ceiling = "[343.0, 548.7, 227.0],\n          [343.0, 548.7, 332.0],\n          [213.0, 548.7, 332.0],\n          [213.0, 548.7, 227.0]";
-        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.json");
-        let text = std::fs::read_to_string(&path).unwrap();
-        assert!(text.contains(ceiling) && text.contains("\"emission\": \"light\""));
-        let sides = if two_sided { "\"emission\": \"light\", \"two_sided\": true" } else { "\"emission\": \"light\"" };
-        let text = text.replace(ceiling, hung).replace("\"emission\": \"light\"", sides);
-        let mut b = prism::scene::parse_scene(&text, "cornell-box.json", path.parent().unwrap()).unwrap();
-        b.set_resolution(RES, RES);
-        b.build()
+    let ceiling = "[343.0, 548.7, 227.0],\n          [343.0, 548.7, 332.0],\n          [213.0, 548.7, 332.0],\n          [213.0, 548.7, 227.0]\n        ]\n      },\n      \"material\": \"white\",\n      \"emission\": \"light\"";
+    let hung = |sides: &str| {
+        let corners = "[278.0, 380.0, 100.0], [278.0, 500.0, 100.0], [278.0, 500.0, 230.0], [278.0, 380.0, 230.0]";
+        let light = format!("{corners}]}}, \"material\": \"white\", \"emission\": \"light\"{sides}");
+        scenes::scene_variant("cornell-box.json", RES, RES, ceiling, &light)
     };
-    let (two, one) = (light(true), light(false));
+    let (two, one) = (hung(", \"two_sided\": true"), hung(""));
     let stats = |s: &prism::scene::Scene, name: &str, spp: u32, seed: u64| {
         let integ = integrators::create(name, &IntegratorOptions::default()).unwrap();
         BlockStats::from_passes(&render_passes(s, integ.as_ref(), spp, K, seed, 0), RES, RES, BLOCK)
     };
     let simple = stats(&two, "simple_path", 256, 60);
     let mut failures = Vec::new();
-    let mut bdpt = None;
-    for (name, spp) in [("path", 32), ("light", 32), ("bdpt", 32)] {
-        let st = stats(&two, name, spp, 61);
+    let [.., bdpt] = ["path", "light", "bdpt"].map(|name| {
+        let st = stats(&two, name, 32, 61);
         let c = compare_in_family(&st, &simple, 3);
         eprintln!("two-sided emitter: {name} vs simple_path: {c}");
         if !c.passed {
             failures.push(format!("{name}: {c}"));
         }
-        bdpt = Some(st);
-    }
-    for (what, control) in [("one-sided", stats(&one, "path", 32, 62)), ("bdpt x1.02", bdpt.unwrap().scaled(1.02))] {
+        st
+    });
+    for (what, control) in [("one-sided", stats(&one, "path", 32, 62)), ("bdpt x1.02", bdpt.scaled(1.02))] {
         let c = compare_in_family(&control, &simple, 3);
         eprintln!("two-sided emitter: {what} vs simple_path (control): {c}");
         if c.passed {
