@@ -1,7 +1,7 @@
 //! Warps from the unit square, a discrete (alias) distribution, the MIS
 //! heuristics, and the per-sample random stream.
 
-use glam::{Vec2, Vec3A};
+use glam::{Vec2, Vec3A, Vec4};
 use rand_xoshiro::rand_core::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro128PlusPlus;
 use std::f32::consts::{FRAC_1_PI, PI};
@@ -62,13 +62,13 @@ pub fn concentric_disk(u: Vec2) -> Vec2 {
         return Vec2::ZERO;
     }
     // theta = a in the first case, pi/2 - a in the second, with |a| <= pi/4.
-    if o.x.abs() > o.y.abs() {
-        let (sin, cos) = sin_cos_quarter(PI / 4.0 * (o.y / o.x));
-        o.x * Vec2::new(cos, sin)
-    } else {
-        let (sin, cos) = sin_cos_quarter(PI / 4.0 * (o.x / o.y));
-        o.y * Vec2::new(sin, cos)
-    }
+    // The case is a coin flip, so both are selects, not branches.
+    // The case is a coin flip: both are lane selects, not branches.
+    let first = Vec4::splat(o.x.abs()).cmpgt(Vec4::splat(o.y.abs()));
+    let rq = Vec4::select(first, Vec4::new(o.x, o.y, 0.0, 0.0), Vec4::new(o.y, o.x, 0.0, 0.0));
+    let (sin, cos) = sin_cos_quarter(PI / 4.0 * (rq.y / rq.x));
+    let cs = Vec4::select(first, Vec4::new(cos, sin, 0.0, 0.0), Vec4::new(sin, cos, 0.0, 0.0));
+    rq.x * Vec2::new(cs.x, cs.y)
 }
 
 /// sin and cos of |a| <= pi/4 from their Taylor series to degree 9 and 10
@@ -97,15 +97,13 @@ pub const UNIFORM_SPHERE_PDF: f32 = 1.0 / (4.0 * PI);
 /// Map Between Triangle and Square".
 #[inline]
 pub fn uniform_triangle(u: Vec2) -> (f32, f32) {
-    let (b0, b1);
-    if u.x < u.y {
-        b0 = u.x / 2.0;
-        b1 = u.y - b0;
-    } else {
-        b1 = u.y / 2.0;
-        b0 = u.x - b1;
-    }
-    (b0, b1)
+    // Of the two, the smaller is halved and the larger reduced by it; which
+    // is which is a coin flip, so a select, not a branch.
+    let x_first = Vec4::splat(u.x).cmplt(Vec4::splat(u.y));
+    let lh = Vec4::select(x_first, Vec4::new(u.x, u.y, 0.0, 0.0), Vec4::new(u.y, u.x, 0.0, 0.0));
+    let (small, large) = (lh.x / 2.0, lh.y - lh.x / 2.0);
+    let b = Vec4::select(x_first, Vec4::new(small, large, 0.0, 0.0), Vec4::new(large, small, 0.0, 0.0));
+    (b.x, b.y)
 }
 
 /// Veach's power heuristic with beta = 2 for two strategies with one sample each.
