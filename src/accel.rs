@@ -415,6 +415,29 @@ impl SoaTriangle {
     }
 }
 
+/// The watertight test's axis orders (kx, ky, kz, 3) by 2 kz + [d[kz] < 0]:
+/// kz the dominant axis, (kx, ky) the next two cyclically, swapped for a
+/// negative d[kz] so the projected winding is kept (Woop et al. 2013, fig. 2).
+/// The fourth entry keeps the padding lane in place.
+const AXIS_ORDERS: [[u32; 4]; 6] = [[1, 2, 0, 3], [2, 1, 0, 3], [2, 0, 1, 3], [0, 2, 1, 3], [0, 1, 2, 3], [1, 0, 2, 3]];
+
+/// (v[k[0]], v[k[1]], v[k[2]]): one variable shuffle with AVX.
+#[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
+#[inline(always)]
+fn permute(v: Vec3A, k: &[u32; 4]) -> Vec3A {
+    use std::arch::x86_64::*;
+    // SAFETY: compiled only when the build enables AVX (x86-64-v3, see
+    // .cargo/config.toml), so every CPU that runs it has AVX; the load reads
+    // the 16 bytes of `k`, a valid, initialised [u32; 4] (unaligned load).
+    unsafe { Vec3A::from(_mm_permutevar_ps(v.into(), _mm_loadu_si128(k.as_ptr().cast()))) }
+}
+
+#[cfg(not(all(target_arch = "x86_64", target_feature = "avx")))]
+#[inline(always)]
+fn permute(v: Vec3A, k: &[u32; 4]) -> Vec3A {
+    Vec3A::new(v[k[0] as usize], v[k[1] as usize], v[k[2] as usize])
+}
+
 /// Per-ray constants of the watertight test (Woop et al. 2013, sec. 3) and of
 /// the node test.
 struct PreparedRay {
@@ -442,18 +465,13 @@ impl PreparedRay {
             return None;
         }
         // kz: the first axis of largest |d|; (kx, ky) the next two
-        // cyclically, as a swizzle that puts (kx, ky, kz) in lanes (x, y, z).
+        // cyclically, swapped when d[kz] < 0. Which of the six it is
+        // depends on a random direction, so it is looked up, not branched on.
         let ad = d.abs();
-        let kz = ad.cmpeq(Vec3A::splat(ad.max_element())).bitmask().trailing_zeros() as usize;
-        let (mut k, mut d_k, mut o_k) = match kz {
-            0 => ([1, 2, 0], d.yzx(), ray.o.yzx()),
-            1 => ([2, 0, 1], d.zxy(), ray.o.zxy()),
-            _ => ([0, 1, 2], d, ray.o),
-        };
-        if d_k.z < 0.0 {
-            k.swap(0, 1);
-            (d_k, o_k) = (d_k.yxz(), o_k.yxz());
-        }
+        let kz = ad.cmpeq(Vec3A::splat(ad.max_element())).bitmask().trailing_zeros();
+        let k = AXIS_ORDERS[(2 * kz + ((d.is_negative_bitmask() >> kz) & 1)) as usize];
+        let (d_k, o_k) = (permute(d, &k), permute(ray.o, &k));
+        let k = [k[0], k[1], k[2]].map(|i| i as usize);
         let sz = 1.0 / d_k.z;
         let dc = d.abs().max(Vec3A::splat(1e-20)).copysign(d);
         let inv = Vec3A::ONE / dc;
@@ -780,6 +798,26 @@ mod tests {
         assert!(a.intersect(&r, f32::INFINITY).is_none());
         assert!(!a.occluded(&r, f32::INFINITY));
         assert_eq!(a.bounds(), (Vec3A::ZERO, Vec3A::ZERO));
+    }
+
+    /// The table against Woop et al.'s rule, for a direction of each
+    /// dominant axis and sign: kz that axis, (kx, ky) the next two
+    /// cyclically, swapped when d[kz] < 0; `permute` puts them in lanes.
+    #[test]
+    fn axis_orders_follow_the_dominant_axis() {
+        for kz in 0..3 {
+            for sign in [1.0f32, -1.0] {
+                let mut d = Vec3A::new(0.3, -0.2, 0.25);
+                d[kz] = 2.0 * sign;
+                let r = PreparedRay::new(&Ray::new(Vec3A::new(1.0, 2.0, 3.0), d)).unwrap();
+                let (kx, ky) = ((kz + 1) % 3, (kz + 2) % 3);
+                let want = if sign < 0.0 { [ky, kx, kz] } else { [kx, ky, kz] };
+                assert_eq!(r.k, want, "d = {d}");
+                assert_eq!(r.o_k, Vec3A::from(want.map(|k| k as f32 + 1.0)), "d = {d}");
+                let s = Vec3A::new(d[want[0]] / d[kz], d[want[1]] / d[kz], 1.0 / d[kz]);
+                assert!((r.s - s).abs().max_element() < 1e-6, "d = {d}: {} vs {s}", r.s);
+            }
+        }
     }
 
     #[test]
