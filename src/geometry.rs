@@ -1,5 +1,6 @@
 //! Rays, shading frames and robust ray-origin offsetting.
 
+use crate::select::select_u32;
 use glam::Vec3A;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -144,16 +145,11 @@ pub fn offset_ray_origin(p: Vec3A, p_error: Vec3A, n: Vec3A, w: Vec3A) -> Vec3A 
 #[inline]
 fn step_away(po: Vec3A, o: Vec3A) -> Vec3A {
     const SIGN: u32 = 0x8000_0000;
-    // All ones where the condition holds: a mask, not a branch (LLVM turns
-    // `std::hint::select_unpredictable` into a branch here).
-    let mask = |c: bool| 0u32.wrapping_sub(c as u32);
     let step = |x: f32, o: f32| {
         let (x, o) = (x.to_bits(), o.to_bits());
         let toward = (((x ^ o) as i32) >> 31) as u32 | 1;
-        let from_zero = mask(x & !SIGN == 0);
-        let moved = (from_zero & ((o & SIGN) | 1)) | (!from_zero & x.wrapping_add(toward));
-        let keep = mask(o & !SIGN == 0);
-        f32::from_bits((keep & x) | (!keep & moved))
+        let moved = select_u32(x & !SIGN == 0, (o & SIGN) | 1, x.wrapping_add(toward));
+        f32::from_bits(select_u32(o & !SIGN == 0, x, moved))
     };
     Vec3A::new(step(po.x, o.x), step(po.y, o.y), step(po.z, o.z))
 }

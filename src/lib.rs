@@ -16,6 +16,7 @@ pub mod render;
 pub mod render_state;
 pub mod sampling;
 pub mod scene;
+pub mod select;
 pub mod shapes;
 pub mod spectrum;
 pub mod stats;

@@ -59,6 +59,7 @@ use crate::materials::TransportMode;
 use crate::render::Splat;
 use crate::sampling::Sampler;
 use crate::scene::{Scene, SurfaceInteraction};
+use crate::select::select_f32;
 use crate::spectrum::{SampledSpectrum, SampledWavelengths};
 use glam::{Vec2, Vec3A};
 
@@ -267,10 +268,10 @@ impl Vertex {
         if self.kind == VertexKind::Surface {
             let frame = &self.si.frame;
             let e = scene.bsdf(&self.si).eval_with_pdfs(frame.to_local(self.si.wo), frame.to_local(wi), lambda, mode);
-            let f = match mode {
-                TransportMode::Radiance => e.f,
-                TransportMode::Importance => e.f * self.si.shading_correction(self.si.wo, wi),
-            };
+            // Importance only; computed either way and selected, as the two
+            // ends of a connection alternate between the modes.
+            let correction = self.si.shading_correction(self.si.wo, wi);
+            let f = e.f * select_f32(mode == TransportMode::Importance, correction, 1.0);
             return Scatter { f, pdf_fwd: e.pdf, pdf_rev: e.pdf_rev };
         }
         if self.kind == VertexKind::Camera {

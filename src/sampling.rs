@@ -1,7 +1,8 @@
 //! Warps from the unit square, a discrete (alias) distribution, the MIS
 //! heuristics, and the per-sample random stream.
 
-use glam::{Vec2, Vec3A, Vec4};
+use crate::select::select_f32;
+use glam::{Vec2, Vec3A};
 use rand_xoshiro::rand_core::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro128PlusPlus;
 use std::f32::consts::{FRAC_1_PI, PI};
@@ -63,12 +64,11 @@ pub fn concentric_disk(u: Vec2) -> Vec2 {
     }
     // theta = a in the first case, pi/2 - a in the second, with |a| <= pi/4.
     // The case is a coin flip, so both are selects, not branches.
-    // The case is a coin flip: both are lane selects, not branches.
-    let first = Vec4::splat(o.x.abs()).cmpgt(Vec4::splat(o.y.abs()));
-    let rq = Vec4::select(first, Vec4::new(o.x, o.y, 0.0, 0.0), Vec4::new(o.y, o.x, 0.0, 0.0));
-    let (sin, cos) = sin_cos_quarter(PI / 4.0 * (rq.y / rq.x));
-    let cs = Vec4::select(first, Vec4::new(cos, sin, 0.0, 0.0), Vec4::new(sin, cos, 0.0, 0.0));
-    rq.x * Vec2::new(cs.x, cs.y)
+    // The case is a coin flip: selects, not branches.
+    let pick = |a: f32, b: f32| select_f32(o.x.abs() > o.y.abs(), a, b);
+    let (r, q) = (pick(o.x, o.y), pick(o.y, o.x));
+    let (sin, cos) = sin_cos_quarter(PI / 4.0 * (q / r));
+    r * Vec2::new(pick(cos, sin), pick(sin, cos))
 }
 
 /// sin and cos of |a| <= pi/4 from their Taylor series to degree 9 and 10
@@ -99,11 +99,10 @@ pub const UNIFORM_SPHERE_PDF: f32 = 1.0 / (4.0 * PI);
 pub fn uniform_triangle(u: Vec2) -> (f32, f32) {
     // Of the two, the smaller is halved and the larger reduced by it; which
     // is which is a coin flip, so a select, not a branch.
-    let x_first = Vec4::splat(u.x).cmplt(Vec4::splat(u.y));
-    let lh = Vec4::select(x_first, Vec4::new(u.x, u.y, 0.0, 0.0), Vec4::new(u.y, u.x, 0.0, 0.0));
-    let (small, large) = (lh.x / 2.0, lh.y - lh.x / 2.0);
-    let b = Vec4::select(x_first, Vec4::new(small, large, 0.0, 0.0), Vec4::new(large, small, 0.0, 0.0));
-    (b.x, b.y)
+    let pick = |a: f32, b: f32| select_f32(u.x < u.y, a, b);
+    let (lo, hi) = (pick(u.x, u.y), pick(u.y, u.x));
+    let (small, large) = (lo / 2.0, hi - lo / 2.0);
+    (pick(small, large), pick(large, small))
 }
 
 /// Veach's power heuristic with beta = 2 for two strategies with one sample each.
