@@ -63,7 +63,6 @@ pub fn concentric_disk(u: Vec2) -> Vec2 {
         return Vec2::ZERO;
     }
     // theta = a in the first case, pi/2 - a in the second, with |a| <= pi/4.
-    // The case is a coin flip, so both are selects, not branches.
     // The case is a coin flip: selects, not branches.
     let pick = |a: f32, b: f32| select_f32(o.x.abs() > o.y.abs(), a, b);
     let (r, q) = (pick(o.x, o.y), pick(o.y, o.x));
@@ -97,8 +96,8 @@ pub const UNIFORM_SPHERE_PDF: f32 = 1.0 / (4.0 * PI);
 /// Map Between Triangle and Square".
 #[inline]
 pub fn uniform_triangle(u: Vec2) -> (f32, f32) {
-    // Of the two, the smaller is halved and the larger reduced by it; which
-    // is which is a coin flip, so a select, not a branch.
+    // Of the two, the smaller is halved and the larger reduced by that half;
+    // which is which is a coin flip, so selects, not a branch.
     let pick = |a: f32, b: f32| select_f32(u.x < u.y, a, b);
     let (lo, hi) = (pick(u.x, u.y), pick(u.y, u.x));
     let (small, large) = (lo / 2.0, hi - lo / 2.0);
