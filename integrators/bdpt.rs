@@ -51,6 +51,7 @@ use crate::path::{
 use crate::render::{Splat, StrategyRecord, Workspace};
 use crate::sampling::Sampler;
 use crate::scene::Scene;
+use crate::select::select_f32;
 use crate::spectrum::{SampledSpectrum, SampledWavelengths};
 use glam::{UVec2, Vec2};
 
@@ -371,14 +372,12 @@ impl End {
     /// vertex and `rev_prev` at its predecessor.
     #[inline]
     fn sum(&self, rev: f32, rev_prev: f32, h: MisHeuristic) -> f32 {
-        let mut inner = self.d_vcm;
-        if self.d_vc != 0.0 {
-            inner += ratio(h, rev_prev, self.prev_pdf_fwd) * self.d_vc;
-        }
-        if inner == 0.0 {
-            return 0.0;
-        }
-        ratio(h, rev, self.pdf_fwd) * inner
+        // Both terms are computed and the zero cases selected (their ratios
+        // may then be infinite, times 0): whether d_vc or the sum is 0
+        // depends on the vertices' kinds, in no order a predictor learns.
+        let via_prev = ratio(h, rev_prev, self.prev_pdf_fwd) * self.d_vc;
+        let inner = self.d_vcm + select_f32(self.d_vc != 0.0, via_prev, 0.0);
+        select_f32(inner != 0.0, ratio(h, rev, self.pdf_fwd) * inner, 0.0)
     }
 }
 
