@@ -83,8 +83,9 @@ impl Integrator for Bdpt {
         init_mis(scene, &mut paths.light, Subpath::Light, self.mis);
         let (camera, light, lambda) = (&paths.camera[..], &paths.light[..], &*lambda);
         let mut l = SampledSpectrum::ZERO;
-        for t in 1..=camera.len() {
-            for s in 0..=light.len() {
+        // (Exclusive ranges: `a..=b` steps with an extra flag and branch.)
+        for t in 1..camera.len() + 1 {
+            for s in 0..light.len() + 1 {
                 if s + t < 2 || s + t - 2 > self.max_depth as usize {
                     continue;
                 }
