@@ -64,7 +64,8 @@ pub fn concentric_disk(u: Vec2) -> Vec2 {
     }
     // theta = a in the first case, pi/2 - a in the second, with |a| <= pi/4.
     // The case is a coin flip: selects, not branches.
-    let pick = |a: f32, b: f32| select_f32(o.x.abs() > o.y.abs(), a, b);
+    let first = o.x.abs() > o.y.abs();
+    let pick = |a: f32, b: f32| select_f32(first, a, b);
     let (r, q) = (pick(o.x, o.y), pick(o.y, o.x));
     let (sin, cos) = sin_cos_quarter(PI / 4.0 * (q / r));
     r * Vec2::new(pick(cos, sin), pick(sin, cos))
@@ -98,7 +99,8 @@ pub const UNIFORM_SPHERE_PDF: f32 = 1.0 / (4.0 * PI);
 pub fn uniform_triangle(u: Vec2) -> (f32, f32) {
     // Of the two, the smaller is halved and the larger reduced by that half;
     // which is which is a coin flip, so selects, not a branch.
-    let pick = |a: f32, b: f32| select_f32(u.x < u.y, a, b);
+    let x_smaller = u.x < u.y;
+    let pick = |a: f32, b: f32| select_f32(x_smaller, a, b);
     let (lo, hi) = (pick(u.x, u.y), pick(u.y, u.x));
     let (small, large) = (lo / 2.0, hi - lo / 2.0);
     (pick(small, large), pick(large, small))
