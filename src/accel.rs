@@ -262,8 +262,7 @@ impl Accel {
         if self.bvh.nodes.is_empty() {
             return;
         }
-        let oct_inv4 =
-            (!r.neg[0] as u32 * 0x0404_0404) | (!r.neg[1] as u32 * 0x0202_0202) | (!r.neg[2] as u32 * 0x0101_0101);
+        let oct_inv4 = r.oct_inv4;
         let mut stack = GroupStack::new();
         // The root as the only inner child of a virtual parent.
         let mut nodes = (0u32, 0x8000_0000u32);
@@ -454,7 +453,10 @@ struct PreparedRay {
     /// silently drop a box (a NaN compare is false).
     inv: Vec3A,
     abs_inv: Vec3A,
-    neg: [bool; 3],
+    /// obvhs's `oct_inv4`: the ray's octant as a byte, bit 2 for d.x >= 0,
+    /// bit 1 for d.y, bit 0 for d.z (after the zero replacement above), in
+    /// each of the four bytes. Inner children's traversal order follows it.
+    oct_inv4: u32,
 }
 
 impl PreparedRay {
@@ -475,6 +477,9 @@ impl PreparedRay {
         let sz = 1.0 / d_k.z;
         let dc = d.abs().max(Vec3A::splat(1e-20)).copysign(d);
         let inv = Vec3A::ONE / dc;
+        // The non-negative axes as bits (x, y, z), reversed to (z, y, x).
+        let pos = !inv.is_negative_bitmask() & 7;
+        let octant = ((pos & 1) << 2) | (pos & 2) | (pos >> 2);
         Some(Self {
             o: ray.o,
             k,
@@ -482,7 +487,7 @@ impl PreparedRay {
             s: Vec3A::new(d_k.x * sz, d_k.y * sz, sz),
             inv,
             abs_inv: inv.abs(),
-            neg: [inv.x < 0.0, inv.y < 0.0, inv.z < 0.0],
+            oct_inv4: octant * 0x0101_0101,
         })
     }
 
@@ -587,12 +592,16 @@ fn intersect_node(node: &CwBvhNode, r: &PreparedRay, t_max: f32, oct_inv4: u32) 
     mask
 }
 
-/// One node's child slabs as the ray sees them: per axis, the near and far
-/// planes' grid coordinates (chosen by the sign of d) and the affine map
-/// q -> t = q scale + offset, the offsets widened by the slack.
+/// One node's child slabs as the ray sees them: per axis, the min and max
+/// planes' grid coordinates and the affine map q -> t = q scale + offset,
+/// the offsets widened by the slack. Which plane is near follows the sign
+/// of d, i.e. of `scale`: the near plane's q scale is the smaller product
+/// of the two and the far plane's the larger, so the tests take the min
+/// and max of the products (bit for bit the product of the plane a choice
+/// by sign would take, without the choice).
 struct NodeSlabs<'a> {
-    near: [&'a [u8; 8]; 3],
-    far: [&'a [u8; 8]; 3],
+    lo: [&'a [u8; 8]; 3],
+    hi: [&'a [u8; 8]; 3],
     scale: Vec3A,
     near_off: Vec3A,
     far_off: Vec3A,
@@ -605,12 +614,9 @@ impl<'a> NodeSlabs<'a> {
         let diff = Vec3A::from(node.p) - r.o;
         let base = diff * r.inv;
         let slack = (diff.abs() + e * 256.0) * r.abs_inv * SLACK;
-        let lo = [&node.child_min_x, &node.child_min_y, &node.child_min_z];
-        let hi = [&node.child_max_x, &node.child_max_y, &node.child_max_z];
-        let pick = |k: usize, near: bool| if r.neg[k] == near { hi[k] } else { lo[k] };
         Self {
-            near: [0, 1, 2].map(|k| pick(k, true)),
-            far: [0, 1, 2].map(|k| pick(k, false)),
+            lo: [&node.child_min_x, &node.child_min_y, &node.child_min_z],
+            hi: [&node.child_max_x, &node.child_max_y, &node.child_max_z],
             scale: e * r.inv,
             near_off: base - slack,
             far_off: base + slack,
@@ -631,24 +637,17 @@ impl<'a> NodeSlabs<'a> {
         unsafe {
             let widen = |b: u64| _mm256_cvtepu8_epi32(_mm_cvtsi64_si128(b as i64));
             let q = |v: &[u8; 8]| _mm256_cvtepi32_ps(widen(u64::from_le_bytes(*v)));
-            let t = |v: &[u8; 8], scale: f32, off: f32| {
-                _mm256_add_ps(_mm256_mul_ps(q(v), _mm256_set1_ps(scale)), _mm256_set1_ps(off))
+            let (s, n, f) = (self.scale.to_array(), self.near_off.to_array(), self.far_off.to_array());
+            // Axis k's near and far t of every child.
+            let slab = |k: usize| {
+                let scale = _mm256_set1_ps(s[k]);
+                let (a, b) = (_mm256_mul_ps(q(self.lo[k]), scale), _mm256_mul_ps(q(self.hi[k]), scale));
+                let near = _mm256_add_ps(_mm256_min_ps(a, b), _mm256_set1_ps(n[k]));
+                (near, _mm256_add_ps(_mm256_max_ps(a, b), _mm256_set1_ps(f[k])))
             };
-            let (s, n, f) = (self.scale, self.near_off, self.far_off);
-            let t_near = _mm256_max_ps(
-                _mm256_max_ps(
-                    _mm256_max_ps(t(self.near[0], s.x, n.x), t(self.near[1], s.y, n.y)),
-                    t(self.near[2], s.z, n.z),
-                ),
-                _mm256_setzero_ps(),
-            );
-            let t_far = _mm256_min_ps(
-                _mm256_min_ps(
-                    _mm256_min_ps(t(self.far[0], s.x, f.x), t(self.far[1], s.y, f.y)),
-                    t(self.far[2], s.z, f.z),
-                ),
-                _mm256_set1_ps(t_max),
-            );
+            let ((nx, fx), (ny, fy), (nz, fz)) = (slab(0), slab(1), slab(2));
+            let t_near = _mm256_max_ps(_mm256_max_ps(_mm256_max_ps(nx, ny), nz), _mm256_setzero_ps());
+            let t_far = _mm256_min_ps(_mm256_min_ps(_mm256_min_ps(fx, fy), fz), _mm256_set1_ps(t_max));
             // All ones in the lanes of hit children (false for NaN, as cmple).
             let hit = _mm256_castps_si256(_mm256_cmp_ps::<_CMP_LE_OQ>(t_near, t_far));
             let bits = _mm256_and_si256(_mm256_sllv_epi32(widen(child_bits8), widen(bit_index8)), hit);
@@ -664,19 +663,18 @@ impl<'a> NodeSlabs<'a> {
     #[cfg(any(test, not(all(target_arch = "x86_64", target_feature = "avx2"))))]
     #[inline(always)]
     fn hit_mask4(&self, t_max: f32, child_bits8: u64, bit_index8: u64) -> u32 {
-        let near = self.near.map(decode8);
-        let far = self.far.map(decode8);
-        let (s, n, f) = (self.scale, self.near_off, self.far_off);
+        let (lo, hi) = (self.lo.map(decode8), self.hi.map(decode8));
+        let (s, n, f) = (self.scale.to_array(), self.near_off.to_array(), self.far_off.to_array());
         let mut hit_mask = 0u32;
         for i in 0..2 {
-            let t_near = (near[0][i] * s.x + Vec4::splat(n.x))
-                .max(near[1][i] * s.y + Vec4::splat(n.y))
-                .max(near[2][i] * s.z + Vec4::splat(n.z))
-                .max(Vec4::ZERO);
-            let t_far = (far[0][i] * s.x + Vec4::splat(f.x))
-                .min(far[1][i] * s.y + Vec4::splat(f.y))
-                .min(far[2][i] * s.z + Vec4::splat(f.z))
-                .min(Vec4::splat(t_max));
+            // Axis k's near and far t of children 4 i .. 4 i + 3.
+            let slab = |k: usize| {
+                let (a, b) = (lo[k][i] * s[k], hi[k][i] * s[k]);
+                (a.min(b) + Vec4::splat(n[k]), a.max(b) + Vec4::splat(f[k]))
+            };
+            let ((nx, fx), (ny, fy), (nz, fz)) = (slab(0), slab(1), slab(2));
+            let t_near = nx.max(ny).max(nz).max(Vec4::ZERO);
+            let t_far = fx.min(fy).min(fz).min(Vec4::splat(t_max));
             let mut mask = t_near.cmple(t_far).bitmask();
             while mask != 0 {
                 let child = i * 4 + mask.trailing_zeros() as usize;
@@ -773,8 +771,7 @@ mod tests {
             let o = Vec3A::new(f(), f(), f()) * 14.0 - 2.0;
             let d = b.min + (b.max - b.min) * Vec3A::new(f(), f(), f()) - o;
             let r = PreparedRay::new(&Ray::new(o, d)).unwrap();
-            let oct_inv4 =
-                (!r.neg[0] as u32 * 0x0404_0404) | (!r.neg[1] as u32 * 0x0202_0202) | (!r.neg[2] as u32 * 0x0101_0101);
+            let oct_inv4 = r.oct_inv4;
             let t_max = if i % 3 == 0 { f32::INFINITY } else { f() * 1.5 };
             let slabs = NodeSlabs::new(node, &r);
             let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
@@ -787,6 +784,35 @@ mod tests {
             }
         }
         assert!(hits > 1000 && misses > 1000, "{hits} hits, {misses} misses");
+    }
+
+    /// For each of the 8 octants, also with zero components (which count
+    /// as positive: 1/+0 is +inf): obvhs's `oct_inv4` byte has bit 2 for
+    /// d.x >= 0, bit 1 for d.y and bit 0 for d.z, in all four bytes (its
+    /// `CwBvhNode::intersect_ray` convention).
+    #[test]
+    fn octant_byte_follows_the_signs() {
+        for octant in 0..8u32 {
+            for zero in [false, true] {
+                let neg = [0, 1, 2].map(|a| octant >> a & 1 == 1);
+                let mut d = Vec3A::new(0.5, 0.25, 0.125);
+                for a in 0..3 {
+                    d[a] = if neg[a] {
+                        -d[a]
+                    } else if zero {
+                        0.0
+                    } else {
+                        d[a]
+                    };
+                }
+                let Some(r) = PreparedRay::new(&Ray::new(Vec3A::ONE, d)) else {
+                    assert_eq!(d, Vec3A::ZERO, "only the zero direction has no prepared ray");
+                    continue;
+                };
+                let byte = (!neg[0] as u32) << 2 | (!neg[1] as u32) << 1 | !neg[2] as u32;
+                assert_eq!(r.oct_inv4, byte * 0x0101_0101, "d {d}");
+            }
+        }
     }
 
     #[test]
