@@ -478,8 +478,8 @@ impl PreparedRay {
         let dc = d.abs().max(Vec3A::splat(1e-20)).copysign(d);
         let inv = Vec3A::ONE / dc;
         // The non-negative axes as bits (x, y, z), reversed to (z, y, x).
-        let pos = !inv.is_negative_bitmask() & 7;
-        let octant = ((pos & 1) << 2) | (pos & 2) | (pos >> 2);
+        const REVERSED: [u32; 8] = [0, 4, 2, 6, 1, 5, 3, 7];
+        let octant = REVERSED[(!inv.is_negative_bitmask() & 7) as usize];
         Some(Self {
             o: ray.o,
             k,
