@@ -786,8 +786,9 @@ mod tests {
         assert!(hits > 1000 && misses > 1000, "{hits} hits, {misses} misses");
     }
 
-    /// For each of the 8 octants, also with zero components (which count
-    /// as positive: 1/+0 is +inf): obvhs's `oct_inv4` byte has bit 2 for
+    /// For each of the 8 octants, also with +0 components (which the zero
+    /// replacement makes +1e-20, so they count as positive): obvhs's
+    /// `oct_inv4` byte has bit 2 for
     /// d.x >= 0, bit 1 for d.y and bit 0 for d.z, in all four bytes (its
     /// `CwBvhNode::intersect_ray` convention).
     #[test]
