@@ -26,9 +26,7 @@
 
 use crate::geometry::{gamma, Ray, NO_TRIANGLE};
 use crate::wide_bvh::{self, PrimRef};
-#[cfg(any(test, not(all(target_arch = "x86_64", target_feature = "avx2"))))]
-use glam::Vec4;
-use glam::{DVec3, Vec3A, Vec3Swizzles};
+use glam::{DVec3, Vec3A, Vec4};
 use obvhs::{
     aabb::Aabb,
     cwbvh::{node::CwBvhNode, CwBvh},
@@ -53,9 +51,9 @@ pub struct TriangleHit {
 
 pub struct Accel {
     bvh: CwBvh,
-    /// Triangles in BVH slot order: `tris[s]` is input triangle
-    /// `bvh.primitive_indices[s]`.
-    tris: Vec<SoaTriangle>,
+    /// Triangles in BVH slot order, four to a block: slot s is lane s % 4
+    /// of block s / 4, input triangle `bvh.primitive_indices[s]`.
+    blocks: Vec<TriangleBlock>,
     /// Per slot, how many slots just before and just after it hold
     /// triangles in exactly its plane (at most `MAX_RUN` each way).
     coplanar: Vec<[u8; 2]>,
@@ -97,10 +95,13 @@ impl Accel {
         let degenerate = refs.iter().filter(|r| !r.is_valid()).map(PrimRef::index).collect();
         refs.retain(|r| r.is_valid());
         let bvh = wide_bvh::build(refs);
-        let sorted: Vec<SoaTriangle> =
-            bvh.primitive_indices.par_iter().map(|&i| SoaTriangle::new(&tri(i as usize))).collect();
-        let coplanar = coplanar_runs(&sorted);
-        Self { bvh, tris: sorted, coplanar, degenerate, input_len: len }
+        let blocks: Vec<TriangleBlock> = bvh
+            .primitive_indices
+            .par_chunks(4)
+            .map(|slots| TriangleBlock::new(slots.iter().map(|&i| tri(i as usize))))
+            .collect();
+        let coplanar = coplanar_runs(&blocks, bvh.primitive_indices.len());
+        Self { bvh, blocks, coplanar, degenerate, input_len: len }
     }
 
     /// The slots a ray leaving (or aimed at) the triangle in `slot` skips:
@@ -138,7 +139,7 @@ impl Accel {
     /// (bit for bit).
     #[inline]
     pub fn vertices(&self, slot: u32) -> [Vec3A; 3] {
-        self.tris[slot as usize].vertices()
+        self.blocks[slot as usize / 4].vertices(slot as usize % 4)
     }
 
     /// Input index -> BVH slot (what `Ray::skip` and `TriangleHit::slot`
@@ -176,7 +177,7 @@ impl Accel {
         use std::mem::size_of;
         self.bvh.nodes.capacity() * size_of::<CwBvhNode>()
             + self.bvh.primitive_indices.capacity() * 4
-            + self.tris.capacity() * size_of::<SoaTriangle>()
+            + self.blocks.capacity() * size_of::<TriangleBlock>()
             + self.coplanar.capacity() * 2
             + self.degenerate.capacity() * 4
     }
@@ -194,7 +195,7 @@ impl Accel {
     /// Scene bounds (min, max) over the non-degenerate triangles; a zero box
     /// at the origin for an empty scene, so derived radii stay finite.
     pub fn bounds(&self) -> (Vec3A, Vec3A) {
-        if self.tris.is_empty() {
+        if self.blocks.is_empty() {
             (Vec3A::ZERO, Vec3A::ZERO)
         } else {
             (self.bvh.total_aabb.min, self.bvh.total_aabb.max)
@@ -209,12 +210,14 @@ impl Accel {
         let mut best_t = t_max;
         let mut best: Option<(u32, f32, f32)> = None;
         let skip = ray.skip.map(|slot| self.skip_run(slot));
-        self.traverse(&pre, skip, &mut best_t, |slot, best_t| {
-            if let Some((t, b1, b2)) = pre.intersect(&self.tris[slot as usize], *best_t) {
-                *best_t = t;
-                best = Some((slot, b1, b2));
-            }
-            false
+        self.traverse(&pre, skip, &mut best_t, |base, mask, best_t| {
+            for_each_block(base, mask, |block, lanes| {
+                let found = pre.intersect_block(&self.blocks[block as usize], lanes, best_t);
+                if let Some((lane, b1, b2)) = found {
+                    best = Some((4 * block + lane, b1, b2));
+                }
+                false
+            })
         });
         best.map(|(slot, b1, b2)| TriangleHit {
             t: best_t,
@@ -233,10 +236,12 @@ impl Accel {
             return false;
         };
         let mut t_max = t_max;
-        let mut hit = false;
         let skip = ray.skip.map(|slot| self.skip_run(slot));
-        self.traverse(&pre, skip, &mut t_max, |slot, t_max| {
-            hit = pre.intersect(&self.tris[slot as usize], *t_max).is_some();
+        let mut hit = false;
+        self.traverse(&pre, skip, &mut t_max, |base, mask, t_max| {
+            hit = for_each_block(base, mask, |block, lanes| {
+                pre.intersect_block(&self.blocks[block as usize], lanes, t_max).is_some()
+            });
             hit
         });
         hit
@@ -244,9 +249,9 @@ impl Accel {
 
     /// Ylitie, Karras & Laine 2017, algorithm 1, on the CPU: visits the
     /// nodes whose boxes the ray enters before `t_max`, inner children in
-    /// the order of the ray's octant, and hands every triangle slot of a
-    /// visited leaf to `leaf`, which may shorten `t_max` and returns true to
-    /// stop. A group is a base index and a hit mask: for nodes, inner
+    /// the order of the ray's octant, and hands the triangle slots of a
+    /// visited node's hit leaves to `leaf` as a group (base slot, mask),
+    /// which may shorten `t_max` and returns true to stop. A group is a base index and a hit mask: for nodes, inner
     /// children's bits (top byte, by traversal priority) over the node's
     /// `imask`; for triangles, one bit per slot. The slot runs in `skip` are
     /// cleared from the triangle masks (no branch per triangle, whose
@@ -257,7 +262,7 @@ impl Accel {
         r: &PreparedRay,
         skip: [(u32, u32); 2],
         t_max: &mut f32,
-        mut leaf: impl FnMut(u32, &mut f32) -> bool,
+        mut leaf: impl FnMut(u32, u32, &mut f32) -> bool,
     ) {
         if self.bvh.nodes.is_empty() {
             return;
@@ -283,12 +288,8 @@ impl Accel {
                 let base = node.primitive_base_idx;
                 tris = (base, hit_mask & 0x00ff_ffff & !(group_bits(skip[0], base) | group_bits(skip[1], base)));
             }
-            while tris.1 != 0 {
-                let i = 31 - tris.1.leading_zeros();
-                tris.1 &= !(1 << i);
-                if leaf(tris.0 + i, t_max) {
-                    return;
-                }
+            if tris.1 != 0 && leaf(tris.0, tris.1, t_max) {
+                return;
             }
             if nodes.1 & 0xff00_0000 == 0 {
                 match stack.pop() {
@@ -320,9 +321,10 @@ const MAX_RUN: u8 = 23;
 /// Predicates", `robust::orient3d`, exact for f32 inputs): all three
 /// vertices of one on the other's plane. Non-degenerate triangles have one
 /// plane each, so coplanarity of neighbours carries along a run.
-fn coplanar_runs(tris: &[SoaTriangle]) -> Vec<[u8; 2]> {
-    let joined: Vec<bool> = tris.par_windows(2).map(|w| w[0].coplanar(&w[1])).collect();
-    let mut runs = vec![[0u8; 2]; tris.len()];
+fn coplanar_runs(blocks: &[TriangleBlock], len: usize) -> Vec<[u8; 2]> {
+    let tri = |s: usize| blocks[s / 4].vertices(s % 4);
+    let joined: Vec<bool> = (1..len).into_par_iter().map(|s| coplanar(&tri(s - 1), &tri(s))).collect();
+    let mut runs = vec![[0u8; 2]; len];
     for (s, &j) in joined.iter().enumerate() {
         if j {
             runs[s + 1][0] = (runs[s][0] + 1).min(MAX_RUN);
@@ -334,6 +336,35 @@ fn coplanar_runs(tris: &[SoaTriangle]) -> Vec<[u8; 2]> {
         }
     }
     runs
+}
+
+/// Whether all of `other`'s vertices lie exactly in the plane of `own`. A
+/// shared vertex does trivially; it is not handed to `orient3d`, whose exact
+/// (slow) stage every zero determinant reaches.
+fn coplanar(own: &[Vec3A; 3], other: &[Vec3A; 3]) -> bool {
+    let c = |v: Vec3A| robust::Coord3D { x: v.x, y: v.y, z: v.z };
+    let [a, b, p] = own.map(c);
+    other.iter().all(|v| own.contains(v) || robust::orient3d(a, b, p, c(*v)) == 0.0)
+}
+
+/// Calls `f(block, lanes)` for the blocks of four slots that hold the slots
+/// of a traversal group (bit i of `mask`: slot `base + i`), from the highest
+/// slot down (the order in which a loop over the slots would meet them);
+/// `lanes` has bit l for slot 4 block + l. Stops when `f` returns true, and
+/// returns whether it did.
+#[inline(always)]
+fn for_each_block(base: u32, mask: u32, mut f: impl FnMut(u32, u32) -> bool) -> bool {
+    // A group spans at most 24 slots, so the shifted mask fits 27 bits.
+    let mut m = (mask as u64) << (base % 4);
+    while m != 0 {
+        let nibble = (63 - m.leading_zeros()) / 4;
+        let lanes = (m >> (4 * nibble)) as u32 & 0xf;
+        m &= (1u64 << (4 * nibble)) - 1;
+        if f(base / 4 + nibble, lanes) {
+            return true;
+        }
+    }
+    false
 }
 
 /// The traversal stack: node groups still to visit. Wide BVHs are shallow,
@@ -366,51 +397,47 @@ pub fn intersect_triangle(ray: &Ray, tri: &[Vec3A; 3], t_max: f32) -> Option<(f3
     if is_degenerate(tri) {
         return None;
     }
-    PreparedRay::new(ray)?.intersect(&SoaTriangle::new(tri), t_max)
+    let mut t = t_max;
+    let (_, b1, b2) = PreparedRay::new(ray)?.intersect_block(&TriangleBlock::new([*tri].into_iter()), 1, &mut t)?;
+    Some((t, b1, b2))
 }
 
-/// A triangle stored by coordinate rather than by vertex: `c[3 k + j]` is
-/// coordinate k (x, y, z) of vertex j. The watertight test permutes the axes
-/// per ray (kx, ky, kz); in this layout that is a choice of row, and each row
-/// holds the same coordinate of all three vertices, so the shear and the three
-/// edge functions run once for all vertices in SIMD lanes. 36 bytes.
+/// Four triangles of consecutive BVH slots, stored by coordinate, one per
+/// SIMD lane: `c[3 k + j]` holds coordinate k (x, y, z) of vertex j of each.
+/// The watertight test permutes the axes per ray (kx, ky, kz); in this
+/// layout that is a choice of rows, and it runs on four triangles at once
+/// (`PreparedRay::intersect_block`), with one branch per block where one per
+/// triangle would follow the geometry, which the CPU cannot predict. 144 bytes, 36 per triangle (the
+/// lanes past the last triangle are zero and never tested).
 #[derive(Clone, Copy, Debug)]
-struct SoaTriangle {
-    c: [f32; 9],
+#[repr(align(16))]
+struct TriangleBlock {
+    c: [[f32; 4]; 9],
 }
 
-impl SoaTriangle {
-    fn new(t: &[Vec3A; 3]) -> Self {
-        let mut c = [0.0; 9];
-        for (k, row) in c.chunks_exact_mut(3).enumerate() {
-            for (j, x) in row.iter_mut().enumerate() {
-                *x = t[j][k];
+impl TriangleBlock {
+    /// Up to four triangles, in lane order.
+    fn new(tris: impl Iterator<Item = [Vec3A; 3]>) -> Self {
+        let mut c = [[0.0f32; 4]; 9];
+        for (lane, t) in tris.enumerate() {
+            for (i, row) in c.iter_mut().enumerate() {
+                row[lane] = t[i % 3][i / 3];
             }
         }
         Self { c }
     }
 
-    /// The vertices back, bit for bit.
+    /// Coordinate k of vertex j of the four triangles.
     #[inline(always)]
-    fn vertices(&self) -> [Vec3A; 3] {
+    fn row(&self, k: usize, j: usize) -> Vec4 {
+        Vec4::from_array(self.c[3 * k + j])
+    }
+
+    /// The vertices of the triangle in `lane`, bit for bit as given.
+    #[inline(always)]
+    fn vertices(&self, lane: usize) -> [Vec3A; 3] {
         let c = &self.c;
-        [0, 1, 2].map(|j| Vec3A::new(c[j], c[3 + j], c[6 + j]))
-    }
-
-    /// Whether all of `other`'s vertices lie exactly in this triangle's
-    /// plane. A shared vertex does trivially; it is not handed to
-    /// `orient3d`, whose exact (slow) stage every zero determinant reaches.
-    fn coplanar(&self, other: &SoaTriangle) -> bool {
-        let c = |v: Vec3A| robust::Coord3D { x: v.x, y: v.y, z: v.z };
-        let own = self.vertices();
-        let [a, b, p] = own.map(c);
-        other.vertices().into_iter().all(|v| own.contains(&v) || robust::orient3d(a, b, p, c(v)) == 0.0)
-    }
-
-    #[inline(always)]
-    fn row(&self, k: usize) -> Vec3A {
-        let r = &self.c[3 * k..3 * k + 3];
-        Vec3A::new(r[0], r[1], r[2])
+        [0, 1, 2].map(|j| Vec3A::new(c[j][lane], c[3 + j][lane], c[6 + j][lane]))
     }
 }
 
@@ -491,73 +518,112 @@ impl PreparedRay {
         })
     }
 
-    /// Woop, Benthin & Wald 2013, fig. 2/3 (no backface culling), with the
-    /// three vertices (a, b, c) in the lanes. Every triangle sharing a vertex
-    /// computes the same sheared coordinates for it, and the edge function
-    /// of a shared edge in the neighbour is the exact negation of ours
-    /// (x1 y2 - y1 x2 vs y1 x2 - x1 y2, products commute exactly), so a ray
-    /// on the edge cannot miss both.
+    /// Woop, Benthin & Wald 2013, fig. 2/3 (no backface culling), on the
+    /// four triangles of a block at once, one per lane, for the lanes set in
+    /// `lanes`. Every triangle sharing a vertex computes the same sheared
+    /// coordinates for it, and the edge function of a shared edge in the
+    /// neighbour is the exact negation of ours (x1 y2 - y1 x2 vs
+    /// y1 x2 - x1 y2, products commute exactly), so a ray on the edge cannot
+    /// miss both.
+    ///
+    /// The hits are met from the highest lane down, as a loop over the
+    /// slots one triangle at a time would meet them: each shortens `t_max`,
+    /// and the last, the closest, is returned as (lane, b1, b2). The lanes
+    /// are tested against the `t_max` of the call and the few that pass are
+    /// checked again against the shortened one, which accepts the same hits
+    /// as testing each against it (t_max only shrinks, and a rounded product
+    /// t_max |det| is monotonic in t_max).
     #[inline(always)]
-    fn intersect(&self, tri: &SoaTriangle, t_max: f32) -> Option<(f32, f32, f32)> {
+    fn intersect_block(&self, block: &TriangleBlock, lanes: u32, t_max: &mut f32) -> Option<(u32, f32, f32)> {
         // (`min` tells the compiler the rows are in bounds.)
         let [kx, ky, kz] = self.k.map(|k| k.min(2));
-        let (sx, sy, sz) = (self.s.x, self.s.y, self.s.z);
-        // Lanes (a, b, c): the vertices relative to o, then sheared.
-        let z = tri.row(kz) - Vec3A::splat(self.o_k.z);
-        let x = (tri.row(kx) - Vec3A::splat(self.o_k.x)) - Vec3A::splat(sx) * z;
-        let y = (tri.row(ky) - Vec3A::splat(self.o_k.y)) - Vec3A::splat(sy) * z;
-        // Lanes (U, V, W) = (cx by - cy bx, ax cy - ay cx, bx ay - by ax).
-        let mut uvw = x.zxy() * y.yzx() - y.zxy() * x.yzx();
+        let splat = Vec4::splat;
+        let (sx, sy, sz) = (splat(self.s.x), splat(self.s.y), self.s.z);
+        // Vertex j's coordinates relative to o, then sheared, in every lane.
+        let zj = |j| block.row(kz, j) - splat(self.o_k.z);
+        let z = [zj(0), zj(1), zj(2)];
+        let sheared = |k, o: f32, s: Vec4, j: usize| (block.row(k, j) - splat(o)) - s * z[j];
+        let x = [sheared(kx, self.o_k.x, sx, 0), sheared(kx, self.o_k.x, sx, 1), sheared(kx, self.o_k.x, sx, 2)];
+        let y = [sheared(ky, self.o_k.y, sy, 0), sheared(ky, self.o_k.y, sy, 1), sheared(ky, self.o_k.y, sy, 2)];
+        // The edge functions (U, V, W) = (cx by - cy bx, ax cy - ay cx,
+        // bx ay - by ax) of vertices (a, b, c).
+        let mut e = [x[2] * y[1] - y[2] * x[1], x[0] * y[2] - y[0] * x[2], x[1] * y[0] - y[1] * x[0]];
         // Exactly zero means the ray is (in f32) on an edge; the f32 products
         // are exact in f64, so recomputing there gets the true sign (sec. 3.3).
-        if uvw.cmpeq(Vec3A::ZERO).any() {
-            let (x1, y1, x2, y2) = (x.zxy(), y.yzx(), y.zxy(), x.yzx());
-            let e = |i: usize| (x1[i] as f64 * y1[i] as f64 - x2[i] as f64 * y2[i] as f64) as f32;
-            uvw = Vec3A::new(e(0), e(1), e(2));
+        let zero = (e[0].cmpeq(Vec4::ZERO) | e[1].cmpeq(Vec4::ZERO) | e[2].cmpeq(Vec4::ZERO)).bitmask() & lanes;
+        if zero != 0 {
+            e = edges_in_f64(x, y, e, zero);
         }
-        // Outside unless the signs agree (zeros aside): one lane mask each.
-        if uvw.cmplt(Vec3A::ZERO).any() && uvw.cmpgt(Vec3A::ZERO).any() {
-            return None;
-        }
-        let det = uvw.x + uvw.y + uvw.z;
-        if det == 0.0 {
-            return None;
-        }
-        let t_scaled = uvw.dot(z * sz);
+        // Outside unless the signs agree (zeros aside).
+        let neg = e[0].cmplt(Vec4::ZERO) | e[1].cmplt(Vec4::ZERO) | e[2].cmplt(Vec4::ZERO);
+        let pos = e[0].cmpgt(Vec4::ZERO) | e[1].cmpgt(Vec4::ZERO) | e[2].cmpgt(Vec4::ZERO);
+        let det = (e[0] + e[1]) + e[2];
+        let t_scaled = (e[0] * (z[0] * sz) + e[1] * (z[1] * sz)) + e[2] * (z[2] * sz);
         // Range test on t = t_scaled / det before dividing (sec. 3.4), with
-        // the sign of det folded in (xor of the sign bit, as the paper's
-        // xorf); written so that NaN fails.
-        let sign = det.to_bits() & 0x8000_0000;
-        let (ts, ds) = (f32::from_bits(t_scaled.to_bits() ^ sign), det.abs());
-        if !(ts > 0.0 && ts < t_max * ds) {
+        // the sign of det folded in (the paper's xorf: for det = 0 or NaN the
+        // lane fails either way); written so that NaN fails.
+        let (ts, ds) = (Vec4::select(det.cmplt(Vec4::ZERO), -t_scaled, t_scaled), det.abs());
+        let in_range = ts.cmpgt(Vec4::ZERO) & ts.cmplt(splat(*t_max) * ds);
+        let mut candidates = (in_range & det.cmpne(Vec4::ZERO)).bitmask() & !(neg & pos).bitmask() & lanes;
+        if candidates == 0 {
             return None;
         }
-        let rcp = 1.0 / det;
+        let rcp = Vec4::ONE / det;
         let t = t_scaled * rcp;
         // The division can round up to t_max. And t itself carries rounding
         // error: accept it only when conservatively positive, t > delta_t
         // (pbrt-v4 section 6.8.7, the bounds of its `IntersectTriangle`), so
         // a ray leaving a surface never re-hits it at t ~ 0 whatever the
         // scene's scale (see `offset_ray_origin`).
-        (t > Self::delta_t(x, y, z, sz, uvw, rcp) && t < t_max).then_some((t, uvw.y * rcp, uvw.z * rcp))
+        candidates &= t.cmpgt(Self::delta_t(&x, &y, &z, sz, &e, rcp)).bitmask();
+        let (t, ts, ds) = (t.to_array(), ts.to_array(), ds.to_array());
+        let (b1, b2) = ((e[1] * rcp).to_array(), (e[2] * rcp).to_array());
+        let mut hit = None;
+        while candidates != 0 {
+            let lane = 31 - candidates.leading_zeros();
+            candidates &= !(1 << lane);
+            let l = lane as usize;
+            if ts[l] < *t_max * ds[l] && t[l] < *t_max {
+                *t_max = t[l];
+                hit = Some((lane, b1[l], b2[l]));
+            }
+        }
+        hit
     }
 
-    /// Bound on the rounding error of t from the sheared vertex coordinates
-    /// `x`, `y`, the unscaled `z` with its scale `sz`, the edge functions `e`
-    /// and 1 / det. As pbrt-v4's, except that the shear's error follows the
-    /// unscaled z the shear multiplies (pbrt uses the scaled z there, which
-    /// is loose for short directions and not conservative for long ones).
+    /// Bound on the rounding error of t, per lane, from the sheared vertex
+    /// coordinates `x`, `y`, the unscaled `z` with its scale `sz`, the edge
+    /// functions `e` and 1 / det. As pbrt-v4's, except that the shear's
+    /// error follows the unscaled z the shear multiplies (pbrt uses the
+    /// scaled z there, which is loose for short directions and not
+    /// conservative for long ones).
     #[inline(always)]
-    fn delta_t(x: Vec3A, y: Vec3A, z: Vec3A, sz: f32, e: Vec3A, rcp: f32) -> f32 {
-        let (max_x, max_y, max_z) = (x.abs().max_element(), y.abs().max_element(), z.abs().max_element());
+    fn delta_t(x: &[Vec4; 3], y: &[Vec4; 3], z: &[Vec4; 3], sz: f32, e: &[Vec4; 3], rcp: Vec4) -> Vec4 {
+        let max_abs = |v: &[Vec4; 3]| v[0].abs().max(v[1].abs()).max(v[2].abs());
+        let (max_x, max_y, max_z, max_e) = (max_abs(x), max_abs(y), max_abs(z), max_abs(e));
+        let g = |n: u32| Vec4::splat(gamma(n));
         let max_zs = max_z * sz.abs();
-        let delta_zs = gamma(3) * max_zs;
-        let delta_x = gamma(5) * (max_x + max_z);
-        let delta_y = gamma(5) * (max_y + max_z);
-        let delta_e = 2.0 * (gamma(2) * max_x * max_y + delta_y * max_x + delta_x * max_y);
-        let max_e = e.abs().max_element();
-        3.0 * (gamma(3) * max_e * max_zs + delta_e * max_zs + delta_zs * max_e) * rcp.abs()
+        let delta_zs = g(3) * max_zs;
+        let delta_x = g(5) * (max_x + max_z);
+        let delta_y = g(5) * (max_y + max_z);
+        let delta_e = 2.0 * (g(2) * max_x * max_y + delta_y * max_x + delta_x * max_y);
+        3.0 * (g(3) * max_e * max_zs + delta_e * max_zs + delta_zs * max_e) * rcp.abs()
     }
+}
+
+/// The edge functions `e` with those of the lanes in `redo` recomputed in
+/// f64 from the sheared coordinates (all three of a lane, as one f32
+/// product pair each, exact in f64, then rounded once).
+#[cold]
+#[inline(never)]
+fn edges_in_f64(x: [Vec4; 3], y: [Vec4; 3], e: [Vec4; 3], redo: u32) -> [Vec4; 3] {
+    let mut e = [e[0].to_array(), e[1].to_array(), e[2].to_array()];
+    let f = |v: Vec4, l: usize| v.to_array()[l] as f64;
+    for l in (0..4).filter(|l| redo >> l & 1 != 0) {
+        let edge = |a: usize, b: usize| (f(x[a], l) * f(y[b], l) - f(y[a], l) * f(x[b], l)) as f32;
+        (e[0][l], e[1][l], e[2][l]) = (edge(2, 1), edge(0, 2), edge(1, 0));
+    }
+    [Vec4::from_array(e[0]), Vec4::from_array(e[1]), Vec4::from_array(e[2])]
 }
 
 /// 2^-20: slab t values below carry at most ~4 roundings of 2^-24 relative to
@@ -813,6 +879,88 @@ mod tests {
                 let byte = (!neg[0] as u32) << 2 | (!neg[1] as u32) << 1 | !neg[2] as u32;
                 assert_eq!(r.oct_inv4, byte * 0x0101_0101, "d {d}");
             }
+        }
+    }
+
+    /// Four triangles in one block give the hits each gives alone, met from
+    /// the highest lane down with the running t_max, as the loop over slots
+    /// of a one-triangle test would: lanes do not leak into each other, and
+    /// the closest hit wins. The triangles are stacked across the ray so most
+    /// rays pass several, and some share vertices on a grid, so that rays
+    /// through those vertices reach the double-precision step.
+    #[test]
+    fn block_test_matches_its_lanes_one_at_a_time() {
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut f = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let mut several = 0;
+        for i in 0..20_000 {
+            let tris: [[Vec3A; 3]; 4] = std::array::from_fn(|_| {
+                let z = f() * 4.0 + 1.0;
+                let tilt = (f() - 0.5) * (i % 2) as f32;
+                let a = f() * 6.0;
+                std::array::from_fn(|v| {
+                    let (x, y) = if i % 4 < 2 {
+                        // Large, around the axis: most rays pass all four.
+                        let a = a + 2.1 * v as f32;
+                        (3.0 * a.cos(), 3.0 * a.sin())
+                    } else {
+                        // On a 3 x 3 grid: shared vertices and edges.
+                        ((f() * 3.0).floor() - 1.0, (f() * 3.0).floor() - 1.0)
+                    };
+                    Vec3A::new(x, y, z + tilt * x)
+                })
+            });
+            let block = TriangleBlock::new(tris.into_iter());
+            // Down the axis or through a grid vertex in a third of the cases.
+            let (o, d) = if i % 3 == 0 {
+                (Vec3A::new((f() * 3.0).floor() - 1.0, (f() * 3.0).floor() - 1.0, -1.0), Vec3A::Z)
+            } else {
+                (Vec3A::new(f() - 0.5, f() - 0.5, -1.0), Vec3A::new(f() - 0.5, f() - 0.5, 1.0) * (0.5 + f()))
+            };
+            let ray = Ray::new(o, d);
+            let Some(pre) = PreparedRay::new(&ray) else { continue };
+            let lanes = 1 + (f() * 15.0) as u32;
+            let t0 = if i % 5 == 0 { 3.0 } else { f32::INFINITY };
+            let mut t_block = t0;
+            let got = pre.intersect_block(&block, lanes, &mut t_block);
+            let (mut t_one, mut want, mut hits) = (t0, None, 0);
+            for lane in (0..4).rev().filter(|l| lanes >> l & 1 != 0) {
+                let alone = TriangleBlock::new([tris[lane as usize]].into_iter());
+                if let Some((_, b1, b2)) = pre.intersect_block(&alone, 1, &mut t_one) {
+                    want = Some((lane, b1, b2));
+                }
+                hits += intersect_triangle(&ray, &tris[lane as usize], t0).is_some() as u32;
+            }
+            assert_eq!((got, t_block.to_bits()), (want, t_one.to_bits()), "case {i}: {ray:?} lanes {lanes:b} {tris:?}");
+            several += (hits > 1) as u32;
+        }
+        assert!(several > 2000, "only {several} rays hit more than one triangle: test too weak");
+        // The f64 step in every lane: two triangles whose shared edge has
+        // f32 edge function exactly 0 but not in exact arithmetic (the
+        // construction of tests/accel.rs `edge_function_zero_in_f32_...`),
+        // so only the f64 products decide which one the ray hits.
+        let e = f32::EPSILON;
+        let (b, c) = (Vec3A::new(-(1.0 + e), -(1.0 + 2.0 * e), 0.0), Vec3A::new(1.0, 1.0 + e, 0.0));
+        let (left, right) = ([Vec3A::new(1.0, -1.0, 0.0), b, c], [Vec3A::new(-1.0, 1.0, 0.0), c, b]);
+        let pre = PreparedRay::new(&Ray::new(Vec3A::new(0.0, 0.0, 1.0), -Vec3A::Z)).unwrap();
+        let alone = |tri: [Vec3A; 3]| {
+            let mut t = f32::INFINITY;
+            pre.intersect_block(&TriangleBlock::new([tri].into_iter()), 1, &mut t).map(|h| (h.1, h.2))
+        };
+        let (hit_left, hit_right) = (alone(left), alone(right));
+        assert!(hit_left.is_some() != hit_right.is_some(), "exactly one of the two is hit");
+        for (l, r) in (0..4).flat_map(|l| (0..4).filter(move |&r| r != l).map(move |r| (l, r))) {
+            let mut tris = [[Vec3A::splat(9.0), Vec3A::new(9.0, 10.0, 9.0), Vec3A::new(10.0, 9.0, 9.0)]; 4];
+            (tris[l], tris[r]) = (left, right);
+            let mut t = f32::INFINITY;
+            let got = pre.intersect_block(&TriangleBlock::new(tris.into_iter()), 0xf, &mut t);
+            let want = hit_left.map(|h| (l as u32, h.0, h.1)).or(hit_right.map(|h| (r as u32, h.0, h.1)));
+            assert_eq!(got, want, "left in lane {l}, right in lane {r}");
         }
     }
 
