@@ -32,7 +32,6 @@ use obvhs::{
     cwbvh::{node::CwBvhNode, CwBvh},
 };
 use rayon::prelude::*;
-use smallvec::SmallVec;
 
 /// A ray-triangle hit: distance, the triangle's index in the input order, the
 /// barycentrics of its second and third vertices, and its vertices (as given
@@ -367,12 +366,44 @@ fn for_each_block(base: u32, mask: u32, mut f: impl FnMut(u32, u32) -> bool) -> 
     false
 }
 
-/// The traversal stack: node groups still to visit. Wide BVHs are shallow,
-/// so 32 entries in place suffice for all but pathological trees, which
-/// spill to the heap instead of losing nodes. (A `SmallVec`, not an array:
-/// its inline storage is not zeroed per ray, which cost 3 % of all
-/// instructions of a Cornell box render.)
-type GroupStack = SmallVec<[(u32, u32); 32]>;
+/// The traversal stack: node groups still to visit. It holds at most one
+/// group per tree level, and wide BVHs are shallow, so 32 entries in place
+/// suffice for all but pathological trees, which spill to the heap instead
+/// of losing nodes. (Not a `SmallVec`: its checks of where the entries
+/// live cost ~40 instructions per ray, 2-3 % of a Cornell box render;
+/// zeroing these 256 bytes costs a few stores.)
+struct GroupStack {
+    inline: [(u32, u32); GroupStack::INLINE],
+    len: usize,
+    spill: Vec<(u32, u32)>,
+}
+
+impl GroupStack {
+    const INLINE: usize = 32;
+
+    #[inline(always)]
+    fn new() -> Self {
+        Self { inline: [(0, 0); Self::INLINE], len: 0, spill: Vec::new() }
+    }
+
+    #[inline(always)]
+    fn push(&mut self, group: (u32, u32)) {
+        match self.inline.get_mut(self.len) {
+            Some(slot) => *slot = group,
+            None => self.spill.push(group),
+        }
+        self.len += 1;
+    }
+
+    #[inline(always)]
+    fn pop(&mut self) -> Option<(u32, u32)> {
+        self.len = self.len.checked_sub(1)?;
+        match self.inline.get(self.len) {
+            Some(&group) => Some(group),
+            None => self.spill.pop(),
+        }
+    }
+}
 
 /// Whether a triangle can never be hit: a non-finite vertex, or zero area
 /// (its cross product is zero in double precision or underflows in single
