@@ -995,6 +995,22 @@ mod tests {
         }
     }
 
+    /// Last in, first out, past the 32 entries in place and back.
+    #[test]
+    fn group_stack_spills_and_keeps_order() {
+        let mut stack = GroupStack::new();
+        for round in 0..2u32 {
+            for i in 0..100 {
+                stack.push((i, round));
+            }
+            assert!(stack.spill.len() == 100 - GroupStack::INLINE);
+            for i in (0..100).rev() {
+                assert_eq!(stack.pop(), Some((i, round)));
+            }
+            assert_eq!(stack.pop(), None);
+        }
+    }
+
     #[test]
     fn empty_scene_misses() {
         let a = Accel::build(&[]);
