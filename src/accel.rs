@@ -839,19 +839,23 @@ mod tests {
         assert_eq!([lo.to_array(), hi.to_array()].concat(), v.map(f32::from));
     }
 
+    /// Uniform numbers in [0, 1) from a xorshift generator.
+    fn uniform(mut seed: u64) -> impl FnMut() -> f32 {
+        move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        }
+    }
+
     /// The 8-lane node test computes the same mask as the 4-lane one, for
     /// every node of a random scene's tree and rays of all octants, with
     /// t_max cutting some children off.
     #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
     #[test]
     fn node_test_8_lanes_matches_4_lanes() {
-        let mut seed = 0x2545_f491_4f6c_dd1du64;
-        let mut f = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut f = uniform(0x2545_f491_4f6c_dd1d);
         let tris: Vec<[Vec3A; 3]> = (0..3000)
             .map(|_| {
                 let c = Vec3A::new(f(), f(), f()) * 10.0;
@@ -921,13 +925,7 @@ mod tests {
     /// through those vertices reach the double-precision step.
     #[test]
     fn block_test_matches_its_lanes_one_at_a_time() {
-        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-        let mut f = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut f = uniform(0x9e37_79b9_7f4a_7c15);
         let mut several = 0;
         for i in 0..20_000 {
             let tris: [[Vec3A; 3]; 4] = std::array::from_fn(|_| {
