@@ -8,7 +8,8 @@
 //!
 //! - Primitive: the watertight ray/triangle test of Woop, Benthin & Wald 2013,
 //!   "Watertight Ray/Triangle Intersection" (JCGT 2(1)), with its
-//!   double-precision fallback. A ray through a shared edge or vertex hits at
+//!   double-precision fallback, on four triangles at once (one per SIMD
+//!   lane, `TriangleBlock`). A ray through a shared edge or vertex hits at
 //!   least one of the triangles that share it, whatever the rounding.
 //! - Node: obvhs's own child-box test clamps t_near to an absolute 1e-4 (culling
 //!   every hit closer than that: a real loss in a millimetre-scale scene) and
@@ -18,8 +19,8 @@
 //!   bound on its rounding error, in the spirit of Ize 2013, "Robust BVH Ray
 //!   Traversal" (JCGT 2(2)); see `intersect_node`.
 //!
-//! Triangles are stored in BVH leaf order (obvhs's `primitive_indices`) so a
-//! leaf's triangles are contiguous in memory; `primitive_indices` maps a slot
+//! Triangles are stored in BVH leaf order (obvhs's `primitive_indices`), four
+//! to a block, so a leaf's triangles are contiguous in memory; `primitive_indices` maps a slot
 //! back to the input index that `TriangleHit::prim` reports. Degenerate
 //! triangles (zero area, non-finite vertices) are left out of the BVH: they can
 //! never be hit, and a renderer could not compute their normal anyway.
