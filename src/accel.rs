@@ -20,8 +20,9 @@
 //!   Traversal" (JCGT 2(2)); see `intersect_node`.
 //!
 //! Triangles are stored in BVH leaf order (obvhs's `primitive_indices`), four
-//! to a block, so a leaf's triangles are contiguous in memory; `primitive_indices` maps a slot
-//! back to the input index that `TriangleHit::prim` reports. Degenerate
+//! to a block, so a leaf's triangles are contiguous in memory;
+//! `primitive_indices` maps a slot back to the input index that
+//! `TriangleHit::prim` reports. Degenerate
 //! triangles (zero area, non-finite vertices) are left out of the BVH: they can
 //! never be hit, and a renderer could not compute their normal anyway.
 
@@ -139,6 +140,7 @@ impl Accel {
     /// (bit for bit).
     #[inline]
     pub fn vertices(&self, slot: u32) -> [Vec3A; 3] {
+        debug_assert!((slot as usize) < self.bvh.primitive_indices.len(), "slot {slot} is a padding lane");
         self.blocks[slot as usize / 4].vertices(slot as usize % 4)
     }
 
@@ -251,11 +253,11 @@ impl Accel {
     /// nodes whose boxes the ray enters before `t_max`, inner children in
     /// the order of the ray's octant, and hands the triangle slots of a
     /// visited node's hit leaves to `leaf` as a group (base slot, mask),
-    /// which may shorten `t_max` and returns true to stop. A group is a base index and a hit mask: for nodes, inner
-    /// children's bits (top byte, by traversal priority) over the node's
-    /// `imask`; for triangles, one bit per slot. The slot runs in `skip` are
-    /// cleared from the triangle masks (no branch per triangle, whose
-    /// outcome the CPU could not predict).
+    /// which may shorten `t_max` and returns true to stop. A group is a base
+    /// index and a hit mask: for nodes, inner children's bits (top byte, by
+    /// traversal priority) over the node's `imask`; for triangles, one bit
+    /// per slot. The slot runs in `skip` are cleared from the triangle masks
+    /// (no branch per triangle, whose outcome the CPU could not predict).
     #[inline(always)]
     fn traverse(
         &self,
@@ -350,7 +352,7 @@ fn coplanar(own: &[Vec3A; 3], other: &[Vec3A; 3]) -> bool {
 /// Calls `f(block, lanes)` for the blocks of four slots that hold the slots
 /// of a traversal group (bit i of `mask`: slot `base + i`), from the highest
 /// slot down (the order in which a loop over the slots would meet them);
-/// `lanes` has bit l for slot 4 block + l. Stops when `f` returns true, and
+/// `lanes` has bit l for slot `4 * block + l`. Stops when `f` returns true, and
 /// returns whether it did.
 #[inline(always)]
 fn for_each_block(base: u32, mask: u32, mut f: impl FnMut(u32, u32) -> bool) -> bool {
@@ -438,9 +440,11 @@ pub fn intersect_triangle(ray: &Ray, tri: &[Vec3A; 3], t_max: f32) -> Option<(f3
 /// SIMD lane: `c[3 k + j]` holds coordinate k (x, y, z) of vertex j of each.
 /// The watertight test permutes the axes per ray (kx, ky, kz); in this
 /// layout that is a choice of rows, and it runs on four triangles at once
-/// (`PreparedRay::intersect_block`), with one branch per block where one per
-/// triangle would follow the geometry, which the CPU cannot predict. 144 bytes, 36 per triangle (the
-/// lanes past the last triangle are zero and never tested).
+/// (`PreparedRay::intersect_block`): whether a block holds a candidate is
+/// one branch, where one per triangle would follow the geometry, which the
+/// CPU cannot predict (the few candidates are then taken lane by lane).
+/// 144 bytes, 36 per triangle; the lanes past the last triangle are zero,
+/// computed on but masked out by every traversal group.
 #[derive(Clone, Copy, Debug)]
 #[repr(align(16))]
 struct TriangleBlock {
@@ -572,6 +576,7 @@ impl PreparedRay {
         let splat = Vec4::splat;
         let (sx, sy, sz) = (splat(self.s.x), splat(self.s.y), self.s.z);
         // Vertex j's coordinates relative to o, then sheared, in every lane.
+        // (Written out: `[0, 1, 2].map` left an out-of-line call here.)
         let zj = |j| block.row(kz, j) - splat(self.o_k.z);
         let z = [zj(0), zj(1), zj(2)];
         let sheared = |k, o: f32, s: Vec4, j: usize| (block.row(k, j) - splat(o)) - s * z[j];
@@ -592,11 +597,14 @@ impl PreparedRay {
         let det = (e[0] + e[1]) + e[2];
         let t_scaled = (e[0] * (z[0] * sz) + e[1] * (z[1] * sz)) + e[2] * (z[2] * sz);
         // Range test on t = t_scaled / det before dividing (sec. 3.4), with
-        // the sign of det folded in (the paper's xorf: for det = 0 or NaN the
-        // lane fails either way); written so that NaN fails.
+        // the sign of det folded in (the paper's xorf; for det = -0 or a
+        // negative NaN the two differ, and the lane fails either way);
+        // written so that NaN fails. It also rejects det = 0, which the
+        // one-triangle form tested apart: 0 < ts < t_max * 0 cannot hold
+        // (and t_max * 0 is NaN for an infinite t_max).
         let (ts, ds) = (Vec4::select(det.cmplt(Vec4::ZERO), -t_scaled, t_scaled), det.abs());
         let in_range = ts.cmpgt(Vec4::ZERO) & ts.cmplt(splat(*t_max) * ds);
-        let mut candidates = (in_range & det.cmpne(Vec4::ZERO)).bitmask() & !(neg & pos).bitmask() & lanes;
+        let mut candidates = in_range.bitmask() & !(neg & pos).bitmask() & lanes;
         if candidates == 0 {
             return None;
         }
@@ -631,6 +639,8 @@ impl PreparedRay {
     /// conservative for long ones).
     #[inline(always)]
     fn delta_t(x: &[Vec4; 3], y: &[Vec4; 3], z: &[Vec4; 3], sz: f32, e: &[Vec4; 3], rcp: Vec4) -> Vec4 {
+        // (The one-triangle form took the max over (a, c), then b: the same
+        // but for a NaN, and a NaN in x or y makes det NaN, failing the lane.)
         let max_abs = |v: &[Vec4; 3]| v[0].abs().max(v[1].abs()).max(v[2].abs());
         let (max_x, max_y, max_z, max_e) = (max_abs(x), max_abs(y), max_abs(z), max_abs(e));
         let g = |n: u32| Vec4::splat(gamma(n));
