@@ -1012,7 +1012,7 @@ mod tests {
             for i in 0..100 {
                 stack.push((i, round));
             }
-            assert!(stack.spill.len() == 100 - GroupStack::INLINE);
+            assert_eq!(stack.spill.len(), 100 - GroupStack::INLINE, "entries past the inline ones spill");
             for i in (0..100).rev() {
                 assert_eq!(stack.pop(), Some((i, round)));
             }
