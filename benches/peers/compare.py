@@ -11,8 +11,14 @@ and the equal-time figures: efficiency = 1 / (relMSE x seconds), and the
 relMSE each renderer would reach in prism path's time (relMSE scales as
 1/time for an unbiased estimator: relMSE x seconds / seconds_prism_path).
 Seconds are render wall seconds; the CPU columns use user+sys seconds of
-the render (fairer on a machine shared with other jobs). Prints Markdown and
-writes results.json next to the runs.
+the render (fairer on a machine shared with other jobs).
+
+With ROUNDS > 1, rounds/*.json holds every round's run: the ratio of two
+renderers run seconds apart in one round is measured under one load, so the
+median over rounds of those paired ratios (with their range) is the figure a
+shared, noisy host can still report; the best-of-rounds ratio needs the
+host quiet for the whole run. Prints Markdown and writes results.json next to
+the runs.
 """
 
 import json
@@ -37,6 +43,24 @@ def per_cpu_second(r):
 
 def rel_mse(x, r):
     return float(np.mean((x - r) ** 2 / (r * r + 0.01)))
+
+
+def rate(r):
+    return r["samples"] / r["wall_seconds"]
+
+
+def paired_ratios(out, a, b):
+    """prism / Mitsuba samples/s of each round that ran both, in round order."""
+    ratios = []
+    for fa in sorted((out / "rounds").glob(f"{a}-r*.json"), key=lambda f: int(f.stem.rsplit("-r", 1)[1])):
+        fb = fa.with_name(fa.name.replace(f"{a}-r", f"{b}-r", 1))
+        if fb.exists():
+            ratios.append(rate(json.loads(fa.read_text())) / rate(json.loads(fb.read_text())))
+    return ratios
+
+
+def round_rates(out, key):
+    return [rate(json.loads(f.read_text())) for f in (out / "rounds").glob(f"{key}-r*.json")]
 
 
 def main():
@@ -79,21 +103,28 @@ def main():
         ("prism-pgo-path", "mitsuba-llvm-path", 2.0),
         ("prism-pgo-light", "mitsuba-llvm-ptracer", 2.0),
     ]
-    print("\n| ratio (prism / Mitsuba) | samples/s (wall) | samples/CPU-s | efficiency (equal time) | target (samples/s) |")
-    print("|---|---:|---:|---:|---:|")
+    print("\n| ratio (prism / Mitsuba) | samples/s (wall) | samples/CPU-s | efficiency (equal time) | paired by round: median (range, rounds) | target (samples/s) |")
+    print("|---|---:|---:|---:|---:|---:|")
     ratios = []
     for a, b, target in pairs:
         if a in by_key and b in by_key:
             ra, rb = by_key[a], by_key[b]
-            wall = (ra["samples"] / ra["wall_seconds"]) / (rb["samples"] / rb["wall_seconds"])
+            wall = rate(ra) / rate(rb)
             cpu = per_cpu_second(ra) / per_cpu_second(rb)
             eff = ra["efficiency"] / rb["efficiency"]
-            ratios.append({"prism": a, "mitsuba": b, "wall": wall, "cpu": cpu, "efficiency": eff, "target": target})
-            print(f"| {ra['label']} / {rb['label']} | {wall:.2f}x | {cpu:.2f}x | {eff:.2f}x | {f'>= {target:.0f}x' if target else '-'} |")
+            paired = paired_ratios(out, a, b)
+            ratios.append({"prism": a, "mitsuba": b, "wall": wall, "cpu": cpu, "efficiency": eff, "target": target,
+                           "paired_by_round": paired})
+            by_round = (f"{np.median(paired):.2f}x ({min(paired):.2f}-{max(paired):.2f}, {len(paired)})"
+                        if paired else "-")
+            print(f"| {ra['label']} / {rb['label']} | {wall:.2f}x | {cpu:.2f}x | {eff:.2f}x | {by_round} "
+                  f"| {f'>= {target:.0f}x' if target else '-'} |")
     for key in ["prism-bdpt", "prism-pgo-bdpt"]:
         if key in by_key:
             r = by_key[key]
-            print(f"\n{r['label']}: {r['samples'] / r['wall_seconds'] / 1e6:.3f} Msamples/s (target >= 1)")
+            rounds = sorted(round_rates(out, key))
+            spread = f"; rounds {rounds[0] / 1e6:.3f}-{rounds[-1] / 1e6:.3f}" if len(rounds) > 1 else ""
+            print(f"\n{r['label']}: {rate(r) / 1e6:.3f} Msamples/s, best round (target >= 1){spread}")
     (out / "results.json").write_text(json.dumps({"runs": rows, "ratios": ratios}, indent=2) + "\n")
 
 

@@ -16,7 +16,8 @@
 #    efficiency, ratios).
 # Environment: SPP (64), RES (256), THREADS (2), REF_SPP (2048), ROUNDS (1:
 # with more, every renderer runs ROUNDS times, interleaved, and the fastest
-# round counts), SCENE (scenes/cornell-box.json), OUT (target/peers), VENV
+# round counts; compare.py also gives each round's own prism / Mitsuba
+# ratio, which a load that changes between rounds does not skew), SCENE (scenes/cornell-box.json), OUT (target/peers), VENV
 # (target/peers-venv), PGO (0: with 1, scripts/pgo-build.sh makes a
 # profile-guided build too, and its path, light and bdpt run beside the plain
 # build's in every round; ~5 minutes more).
@@ -81,17 +82,19 @@ if [[ $PGO == 1 ]]; then
     echo "== profile-guided build (scripts/pgo-build.sh)"
     scripts/pgo-build.sh >/dev/null
 fi
-mkdir -p "$OUT/runs" "$OUT/images"
-rm -f "$OUT"/runs/*.json
+mkdir -p "$OUT/runs" "$OUT/rounds" "$OUT/images"
+rm -f "$OUT"/runs/*.json "$OUT"/rounds/*.json
 "$PRISM" export-mitsuba "$SCENE" "$OUT/mitsuba-scene" --width "$RES" --height "$RES" --spp "$SPP"
 
 echo "== machine: $(lscpu | sed -n 's/^Model name: *//p'), $(nproc) CPUs, load $(cut -d' ' -f1-3 /proc/loadavg)"
 echo "== $("$PY" -c 'import mitsuba, drjit; print("mitsuba", mitsuba.__version__, "drjit", drjit.__version__, "libLLVM", ".".join(map(str, drjit.detail.llvm_version())))')"
 
 # --- 4. renders, back to back; each writes $OUT/runs/<key>.json for compare.py
-# keep_best KEY JSON: keeps the faster of this round's and an earlier round's run.
+# keep_best KEY ROUND JSON: keeps this round's run in rounds/, and in runs/
+# the faster of it and an earlier round's run.
 keep_best() {
-    "$PY" - "$OUT/runs/$1.json" "$2" <<'PYEOF'
+    echo "$3" >"$OUT/rounds/$1-r$2.json"
+    "$PY" - "$OUT/runs/$1.json" "$3" <<'PYEOF'
 import json, sys
 path, new = sys.argv[1], json.loads(sys.argv[2])
 try:
@@ -133,7 +136,7 @@ PYEOF
 )
     rm -f "$t"
     summary "$1" "$json"
-    keep_best "$1" "$json"
+    keep_best "$1" "$3" "$json"
 }
 
 mitsuba_run() { # KEY VARIANT INTEGRATOR ROUND
@@ -153,7 +156,7 @@ print(json.dumps(r))
 PYEOF
 )
     summary "$1" "$json"
-    keep_best "$1" "$json"
+    keep_best "$1" "$4" "$json"
 }
 
 for round in $(seq 1 "$ROUNDS"); do
