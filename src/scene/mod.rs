@@ -328,18 +328,20 @@ impl Scene {
         // What `normal_and_area` gives a triangle the BVH holds (non-zero,
         // finite area), without the area.
         let ng = (v[1] - v[0]).cross(v[2] - v[0]).normalize();
-        let mut ns = match &m.shading {
+        let ns = match &m.shading {
             Some((indices, normals)) => {
                 let n = indices[k].map(|i| normals[i as usize]);
-                (n[0] * b0 + n[1] * hit.b1 + n[2] * hit.b2).normalize_or_zero()
+                let ns = (n[0] * b0 + n[1] * hit.b1 + n[2] * hit.b2).normalize_or_zero();
+                if ns == Vec3A::ZERO || !ns.is_finite() {
+                    ng
+                } else if ns.dot(ng) < 0.0 {
+                    -ns
+                } else {
+                    ns
+                }
             }
             None => ng,
         };
-        if ns == Vec3A::ZERO || !ns.is_finite() {
-            ns = ng;
-        } else if ns.dot(ng) < 0.0 {
-            ns = -ns;
-        }
         Some(SurfaceInteraction {
             p,
             p_error: barycentric_error(&v, b0, hit.b1, hit.b2),
