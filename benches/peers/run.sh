@@ -17,8 +17,8 @@
 # Environment: SPP (64), RES (256), THREADS (2), REF_SPP (2048), ROUNDS (1:
 # with more, every renderer runs ROUNDS times, interleaved, and the fastest
 # round counts; compare.py also gives each round's own prism / Mitsuba
-# ratio, which a load that changes between rounds does not skew), SCENE (scenes/cornell-box.json), OUT (target/peers), VENV
-# (target/peers-venv), PGO (0: with 1, scripts/pgo-build.sh makes a
+# ratio, which a load that changes between rounds does not skew), SCENE
+# (scenes/cornell-box.json), OUT (target/peers), VENV (target/peers-venv), PGO (0: with 1, scripts/pgo-build.sh makes a
 # profile-guided build too, and its path, light and bdpt run beside the plain
 # build's in every round; ~5 minutes more).
 set -euo pipefail
