@@ -18,9 +18,10 @@
 # with more, every renderer runs ROUNDS times, interleaved, and the fastest
 # round counts; compare.py also gives each round's own prism / Mitsuba
 # ratio, which a load that changes between rounds does not skew), SCENE
-# (scenes/cornell-box.json), OUT (target/peers), VENV (target/peers-venv), PGO (0: with 1, scripts/pgo-build.sh makes a
-# profile-guided build too, and its path, light and bdpt run beside the plain
-# build's in every round; ~5 minutes more).
+# (scenes/cornell-box.json), OUT (target/peers), VENV (target/peers-venv),
+# PGO (0: with 1, scripts/pgo-build.sh makes a profile-guided build too, and
+# its path, light and bdpt run beside the plain build's in every round; ~5
+# minutes more).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 
