@@ -230,21 +230,24 @@ fn killed_and_resumed_render_is_bit_identical() {
         rng ^= rng >> 7;
         rng ^= rng << 17;
         let kill_at = (kills < 30).then(|| Instant::now() + Duration::from_millis(20 + rng % 230));
-        let status = loop {
+        let finished = loop {
             if let Some(status) = child.try_wait().unwrap() {
-                break Some(status);
+                let o = child.wait_with_output().unwrap();
+                assert!(status.success(), "run {} failed: {}", kills + 1, stderr(&o));
+                break true;
             }
             if kill_at.is_some_and(|t| Instant::now() >= t) {
                 child.kill().unwrap();
                 child.wait().unwrap();
                 kills += 1;
-                break None;
+                // Removing the checkpoint is a render's last act: a kill
+                // that lands after it (or after the exit) finds the
+                // outputs complete, and a rerun would rightly refuse them.
+                break !checkpoint.exists() && out.exists();
             }
             std::thread::sleep(Duration::from_millis(2));
         };
-        if let Some(status) = status {
-            let o = child.wait_with_output().unwrap();
-            assert!(status.success(), "run {} failed: {}", kills + 1, stderr(&o));
+        if finished {
             break;
         }
     }
