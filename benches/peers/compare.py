@@ -18,7 +18,8 @@ renderers run seconds apart in one round is measured under one load, so the
 median over rounds of those paired ratios (with their range) is the figure a
 shared, noisy host can still report; the best-of-rounds ratio needs the
 host quiet for the whole run. Prints Markdown and writes results.json next to
-the runs.
+the runs, with the machine run.sh recorded (machine.json: CPU, vector ISA,
+the target and float lanes of Dr.Jit's LLVM kernels).
 """
 
 import json
@@ -83,6 +84,15 @@ def main():
     for r in rows:
         r["rel_mse_at_prism_path_time"] = r["rel_mse"] * r["wall_seconds"] / base["wall_seconds"] if base else None
 
+    machine_path = out / "machine.json"
+    machine = json.loads(machine_path.read_text()) if machine_path.exists() else None
+    if machine:
+        # The ratios depend on it: Dr.Jit compiles for the host's widest
+        # vectors, prism for a fixed level.
+        prism_target = base.get("build_target") if base else None
+        print(f"machine: {machine['cpu']} (family {machine['cpu_family']}, model {machine['cpu_model']}), "
+              f"{machine['cpus']} CPUs; ISA {' '.join(machine['isa'])}; Dr.Jit LLVM kernels for "
+              f"{machine['drjit_target_cpu']}, {machine['drjit_float_lanes']} float lanes; prism built for {prism_target}\n")
     print(f"reference: {ref_path} ({json.loads(ref_path.with_suffix('.json').read_text())['command']})\n")
     print("| renderer | samples | render s | CPU s | Msamples/s | Msamples/CPU-s | relMSE | relMSE at prism-path time | efficiency 1/(relMSE s) | mean R,G,B / reference |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---|")
@@ -125,7 +135,7 @@ def main():
             rounds = sorted(round_rates(out, key))
             spread = f"; rounds {rounds[0] / 1e6:.3f}-{rounds[-1] / 1e6:.3f}" if len(rounds) > 1 else ""
             print(f"\n{r['label']}: {rate(r) / 1e6:.3f} Msamples/s, best round (target >= 1){spread}")
-    (out / "results.json").write_text(json.dumps({"runs": rows, "ratios": ratios}, indent=2) + "\n")
+    (out / "results.json").write_text(json.dumps({"machine": machine, "runs": rows, "ratios": ratios}, indent=2) + "\n")
 
 
 if __name__ == "__main__":

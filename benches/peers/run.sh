@@ -87,7 +87,25 @@ mkdir -p "$OUT/runs" "$OUT/rounds" "$OUT/images"
 rm -f "$OUT"/runs/*.json "$OUT"/rounds/*.json
 "$PRISM" export-mitsuba "$SCENE" "$OUT/mitsuba-scene" --width "$RES" --height "$RES" --spp "$SPP"
 
-echo "== machine: $(lscpu | sed -n 's/^Model name: *//p'), $(nproc) CPUs, load $(cut -d' ' -f1-3 /proc/loadavg)"
+# The machine, and the vector width each renderer compiles for: Dr.Jit JITs
+# Mitsuba's LLVM kernels for the host (16 float lanes where it has
+# AVX-512), prism is built for a fixed level (.cargo/config.toml), so the
+# ratios depend on the host's vector ISA (docs/performance.md, "Session 16").
+cpu_field() { sed -n "s/^$1[[:space:]]*: *//p" /proc/cpuinfo | head -1; }
+DRJIT_IR=$("$PY" -c 'import drjit as dr; dr.set_log_level(dr.LogLevel.Trace); dr.eval(dr.llvm.Float(1, 2) + 1)' 2>&1 || true)
+"$PY" - "$OUT/machine.json" <<PYEOF
+import json, sys
+flags = set("$(cpu_field flags)".split())
+json.dump({
+    "cpu": "$(cpu_field 'model name')", "cpu_family": "$(cpu_field 'cpu family')", "cpu_model": "$(cpu_field model)",
+    "cpus": $(nproc), "load_at_start": "$(cut -d' ' -f1-3 /proc/loadavg)",
+    "isa": [f for f in ("avx2", "fma", "avx512f", "avx512vl") if f in flags],
+    "drjit_target_cpu": "$(grep -o '"target-cpu"="[^"]*"' <<<"$DRJIT_IR" | head -1 | cut -d'"' -f4)",
+    "drjit_float_lanes": "$(grep -o '<[0-9]* x float>' <<<"$DRJIT_IR" | head -1 | tr -dc 0-9)",
+}, open(sys.argv[1], "w"), indent=2)
+PYEOF
+echo "== machine: $(cpu_field 'model name') (family $(cpu_field 'cpu family'), model $(cpu_field model)), $(nproc) CPUs, load $(cut -d' ' -f1-3 /proc/loadavg)"
+echo "== vector ISA: $("$PY" -c 'import json, sys; m = json.load(open(sys.argv[1])); print(" ".join(m["isa"]) + "; Dr.Jit compiles for", m["drjit_target_cpu"], "with", m["drjit_float_lanes"], "float lanes")' "$OUT/machine.json")"
 echo "== $("$PY" -c 'import mitsuba, drjit; print("mitsuba", mitsuba.__version__, "drjit", drjit.__version__, "libLLVM", ".".join(map(str, drjit.detail.llvm_version())))')"
 
 # --- 4. renders, back to back; each writes $OUT/runs/<key>.json for compare.py
@@ -131,7 +149,7 @@ side = json.load(open(exr.replace(".exr", ".json")))
 user, sys_ = map(float, open(t).read().split()[-2:])
 label = f"prism {integrator}" + (" (PGO build)" if key.startswith("prism-pgo") else "")
 print(json.dumps({"key": key, "label": label, "out": exr, "samples": side["spp"] * side["width"] * side["height"],
-                  "wall_seconds": side["wall_seconds"], "cpu_seconds": user + sys_, "first_seconds": None,
+                  "build_target": side.get("build_target"), "wall_seconds": side["wall_seconds"], "cpu_seconds": user + sys_, "first_seconds": None,
                   "note": "CPU s: whole process (scene load and BVH build included, a few ms)"}))
 PYEOF
 )
