@@ -210,18 +210,9 @@ impl Accel {
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<TriangleHit> {
         let pre = PreparedRay::new(ray)?;
         let mut best_t = t_max;
-        let mut best: Option<(u32, f32, f32)> = None;
         let skip = ray.skip.map(|slot| self.skip_run(slot));
-        self.traverse(&pre, skip, &mut best_t, |base, mask, best_t| {
-            for_each_block(base, mask, |block, lanes| {
-                let found = pre.intersect_block(&self.blocks[block as usize], lanes, best_t);
-                if let Some((lane, b1, b2)) = found {
-                    best = Some((4 * block + lane, b1, b2));
-                }
-                false
-            })
-        });
-        best.map(|(slot, b1, b2)| TriangleHit {
+        let (slot, b1, b2) = self.traverse::<false>(&pre, skip, &mut best_t)?;
+        Some(TriangleHit {
             t: best_t,
             prim: self.bvh.primitive_indices[slot as usize],
             b1,
@@ -237,37 +228,35 @@ impl Accel {
         let Some(pre) = PreparedRay::new(ray) else {
             return false;
         };
-        let mut t_max = t_max;
-        let skip = ray.skip.map(|slot| self.skip_run(slot));
-        let mut hit = false;
-        self.traverse(&pre, skip, &mut t_max, |base, mask, t_max| {
-            hit = for_each_block(base, mask, |block, lanes| {
-                pre.intersect_block(&self.blocks[block as usize], lanes, t_max).is_some()
-            });
-            hit
-        });
-        hit
+        let (skip, mut t_max) = (ray.skip.map(|slot| self.skip_run(slot)), t_max);
+        self.traverse::<true>(&pre, skip, &mut t_max).is_some()
     }
 
     /// Ylitie, Karras & Laine 2017, algorithm 1, on the CPU: visits the
     /// nodes whose boxes the ray enters before `t_max`, inner children in
-    /// the order of the ray's octant, and hands the triangle slots of a
-    /// visited node's hit leaves to `leaf` as a group (base slot, mask),
-    /// which may shorten `t_max` and returns true to stop. A group is a base
+    /// the order of the ray's octant, and tests the triangle slots of a
+    /// visited node's hit leaves as a group (base slot, mask), each hit
+    /// shortening `t_max`. Returns the closest hit (slot, b1, b2), or with
+    /// `ANY_HIT` the first one found. A group is a base
     /// index and a hit mask: for nodes, inner children's bits (top byte, by
     /// traversal priority) over the node's `imask`; for triangles, one bit
     /// per slot. The slot runs in `skip` are cleared from the triangle masks
     /// (no branch per triangle, whose outcome the CPU could not predict).
+    ///
+    /// No closure: the whole loop, the triangle test included, is inlined
+    /// into each caller (a closure for the leaves was compiled out of line
+    /// once `Scene::intersect` was inlined into several integrators, a call
+    /// per visited group).
     #[inline(always)]
-    fn traverse(
+    fn traverse<const ANY_HIT: bool>(
         &self,
         r: &PreparedRay,
         skip: [(u32, u32); 2],
         t_max: &mut f32,
-        mut leaf: impl FnMut(u32, u32, &mut f32) -> bool,
-    ) {
+    ) -> Option<(u32, f32, f32)> {
+        let mut best = None;
         if self.bvh.nodes.is_empty() {
-            return;
+            return best;
         }
         let oct_inv4 = r.oct_inv4;
         let mut stack = GroupStack::new();
@@ -290,13 +279,20 @@ impl Accel {
                 let base = node.primitive_base_idx;
                 tris = (base, hit_mask & 0x00ff_ffff & !(group_bits(skip[0], base) | group_bits(skip[1], base)));
             }
-            if tris.1 != 0 && leaf(tris.0, tris.1, t_max) {
-                return;
+            if tris.1 != 0 {
+                for (block, lanes) in blocks(tris.0, tris.1) {
+                    if let Some((lane, b1, b2)) = r.intersect_block(&self.blocks[block as usize], lanes, t_max) {
+                        best = Some((4 * block + lane, b1, b2));
+                        if ANY_HIT {
+                            return best;
+                        }
+                    }
+                }
             }
             if nodes.1 & 0xff00_0000 == 0 {
                 match stack.pop() {
                     Some(g) => nodes = g,
-                    None => return,
+                    None => return best,
                 }
             }
         }
@@ -349,24 +345,23 @@ fn coplanar(own: &[Vec3A; 3], other: &[Vec3A; 3]) -> bool {
     other.iter().all(|v| own.contains(v) || robust::orient3d(a, b, p, c(*v)) == 0.0)
 }
 
-/// Calls `f(block, lanes)` for the blocks of four slots that hold the slots
-/// of a traversal group (bit i of `mask`: slot `base + i`), from the highest
-/// slot down (the order in which a loop over the slots would meet them);
-/// `lanes` has bit l for slot `4 * block + l`. Stops when `f` returns true, and
-/// returns whether it did.
+/// The blocks of four slots that hold the slots of a traversal group (bit
+/// i of `mask`: slot `base + i`), as (block, lanes), from the highest slot
+/// down (the order in which a loop over the slots would meet them); `lanes`
+/// has bit l for slot `4 * block + l`.
 #[inline(always)]
-fn for_each_block(base: u32, mask: u32, mut f: impl FnMut(u32, u32) -> bool) -> bool {
+fn blocks(base: u32, mask: u32) -> impl Iterator<Item = (u32, u32)> {
     // A group spans at most 24 slots, so the shifted mask fits 27 bits.
     let mut m = (mask as u64) << (base % 4);
-    while m != 0 {
+    std::iter::from_fn(move || {
+        if m == 0 {
+            return None;
+        }
         let nibble = (63 - m.leading_zeros()) / 4;
         let lanes = (m >> (4 * nibble)) as u32 & 0xf;
         m &= (1u64 << (4 * nibble)) - 1;
-        if f(base / 4 + nibble, lanes) {
-            return true;
-        }
-    }
-    false
+        Some((base / 4 + nibble, lanes))
+    })
 }
 
 /// The traversal stack: node groups still to visit. It holds at most one

@@ -260,7 +260,10 @@ impl Vertex {
     /// being the direction the walk arrived along. A light origin gives
     /// Le^(1) and its emission density, the pinhole its directional
     /// importance density, a vertex at infinity the planar density of its
-    /// emitted rays (pbrt `Vertex::f`, `Vertex::Pdf`, `PdfLight`).
+    /// emitted rays (pbrt `Vertex::f`, `Vertex::Pdf`, `PdfLight`). Always
+    /// inlined, as the profile-guided build chose (docs/performance.md,
+    /// "Session 16").
+    #[inline(always)]
     pub fn scatter(&self, scene: &Scene, wi: Vec3A, lambda: &SampledWavelengths, mode: TransportMode) -> Scatter {
         // Surfaces first, by a conditional branch: a `match` on the kind
         // compiles to a jump table, whose indirect jump mispredicted ~10
@@ -419,8 +422,10 @@ pub fn light_subpath(
 /// sampling BSDFs (pbrt-v3 `RandomWalk`) until `max_vertices`, a miss,
 /// absorption or roulette. `beta` is the throughput the ray carries and
 /// `pdf` the density (solid angle; planar from the environment) with which
-/// its direction was chosen.
+/// its direction was chosen. Always inlined, as the profile-guided build
+/// chose (docs/performance.md, "Session 16").
 #[allow(clippy::too_many_arguments)]
+#[inline(always)]
 fn random_walk(
     scene: &Scene,
     mut ray: Ray,
@@ -505,7 +510,9 @@ fn push_vertex(path: &mut Vec<Vertex>, mut v: Vertex, pdf: f32) {
 /// beta f |cos_v| We / pdf (`Camera::sample_wi`; f in importance mode with
 /// the shading correction, |cos| with the shading normal), or None if `v`
 /// cannot connect, projects outside the image, carries nothing or is
-/// occluded.
+/// occluded. Always inlined, as the profile-guided build chose
+/// (docs/performance.md, "Session 16").
+#[inline(always)]
 pub fn connect_to_camera(scene: &Scene, v: &Vertex, lambda: &SampledWavelengths) -> Option<CameraConnection> {
     if v.is_infinite() || !v.is_connectible(scene) {
         return None;

@@ -315,8 +315,10 @@ impl SceneBuilder {
 }
 
 impl Scene {
-    /// Closest surface hit along the ray.
-    #[inline]
+    /// Closest surface hit along the ray. Always inlined, traversal and
+    /// all, as the profile-guided build chose (docs/performance.md,
+    /// "Session 16").
+    #[inline(always)]
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceInteraction> {
         count_ray();
         let hit = self.accel.intersect(ray, f32::INFINITY)?;
