@@ -174,7 +174,8 @@ impl Bsdf {
         dispatch!(self, b => b.eval(wo, wi, lambda, mode))
     }
 
-    #[inline]
+    /// Always inlined into the walks (docs/performance.md, "Session 16").
+    #[inline(always)]
     pub fn sample(
         &self,
         wo: Vec3A,
