@@ -223,10 +223,11 @@ impl Accel {
     }
 
     /// Whether anything but the triangles of `ray.skip` and their coplanar
-    /// runs blocks the ray in (0, t_max); stops at the first hit. Inlined
-    /// into `Scene::unoccluded` and `Scene::escapes`, the renderer's only
-    /// callers (no call through the GOT per shadow ray).
-    #[inline(always)]
+    /// runs blocks the ray in (0, t_max); stops at the first hit. Out of
+    /// line: inlined with `Scene::unoccluded` into `Bdpt::sample`'s
+    /// connections, it cost `bdpt` 11 % more instructions
+    /// (docs/performance.md, "Session 16").
+    #[inline(never)]
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
         let Some(pre) = PreparedRay::new(ray) else {
             return false;

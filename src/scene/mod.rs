@@ -369,7 +369,9 @@ impl Scene {
 
     /// Whether the segment between two points is unobstructed; each end is
     /// offset off its own surface (pbrt-v4 `SpawnRayTo` from both ends).
-    #[inline]
+    /// Always inlined, so that its callers pass no `SurfacePoint` through
+    /// memory; the traversal itself (`Accel::occluded`) stays out of line.
+    #[inline(always)]
     pub fn unoccluded(&self, a: SurfacePoint, b: SurfacePoint) -> bool {
         let d = b.p - a.p;
         let o = a.spawn_origin(d);
