@@ -243,8 +243,9 @@ impl Accel {
     /// shortening `t_max`. Returns the closest hit (slot, b1, b2), or with
     /// `ANY_HIT` the first one found. A group is a base index and a hit
     /// mask: for nodes, inner children's bits (top byte, by traversal
-    /// priority) over the node's `imask`; for triangles, one bit per slot. The slot runs in `skip` are cleared from the triangle masks
-    /// (no branch per triangle, whose outcome the CPU could not predict).
+    /// priority) over the node's `imask`; for triangles, one bit per slot.
+    /// The slot runs in `skip` are cleared from the triangle masks (no
+    /// branch per triangle, whose outcome the CPU could not predict).
     ///
     /// No closure: the whole loop, the triangle test included, is inlined
     /// into each caller (a closure for the leaves was compiled out of line
