@@ -14,7 +14,7 @@
 //! resumed runs and merged parts give the same bits as one uninterrupted
 //! render, whatever the split (docs/cluster.md).
 
-use crate::spectrum::{to_linear_srgb, SampledSpectrum, SampledWavelengths};
+use crate::spectrum::{SampledCmf, SampledSpectrum};
 use anyhow::{bail, ensure, Context, Result};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
@@ -39,7 +39,9 @@ impl DroppedSamples {
         self.negative += o.negative;
     }
 
-    /// Converts a spectral sample to linear sRGB, or counts why it is dropped.
+    /// Converts a spectral sample to linear sRGB with its path's matching
+    /// functions `cmf` (`SampledCmf::linear_srgb`), or counts why it is
+    /// dropped.
     /// The check is on the spectral values: sRGB itself may legitimately be
     /// negative for saturated spectra. A colour beyond the film's exact range
     /// (|c| > MAX_SAMPLE, some 10^14: no estimator comes near it on a sane
@@ -47,7 +49,7 @@ impl DroppedSamples {
     /// overflows (a finite spectrum near f32::MAX sums to infinity, and the
     /// sRGB matrix turns infinities into NaN).
     #[inline]
-    pub fn admit(&mut self, l: SampledSpectrum, lambda: &SampledWavelengths) -> Option<Vec3> {
+    pub fn admit(&mut self, l: SampledSpectrum, cmf: &SampledCmf) -> Option<Vec3> {
         if l.0.is_nan_mask().any() {
             self.nan += 1;
             return None;
@@ -60,7 +62,7 @@ impl DroppedSamples {
             self.negative += 1;
             return None;
         }
-        let rgb = to_linear_srgb(l, lambda);
+        let rgb = cmf.apply(l);
         // Lane by lane, so that a NaN channel fails too (`max_element`
         // would pass over it).
         if !rgb.abs().cmple(Vec3::splat(MAX_SAMPLE)).all() {

@@ -23,8 +23,8 @@ use crate::film::{add_fixed, to_fixed, write_exr, DroppedSamples, Film};
 use crate::integrators::Integrator;
 use crate::sampling::Sampler;
 use crate::scene::Scene;
-use crate::spectrum::{SampledSpectrum, SampledWavelengths};
-use glam::{UVec2, Vec2, Vec3};
+use crate::spectrum::{SampledCmf, SampledSpectrum, SampledWavelengths};
+use glam::{UVec2, Vec2, Vec3, Vec4};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::ThreadPool;
 use std::collections::BTreeMap;
@@ -451,9 +451,10 @@ fn render_tile(
                     records.clear();
                 }
                 let l = integrator.sample(scene, pixel, &mut sampler, &mut lambda, ws);
-                out.add_sample(local, l, &ws.splats, &lambda, image);
+                let cmf = SampledCmf::linear_srgb(&lambda);
+                out.add_sample(local, l, &ws.splats, &cmf, image);
                 if let (Some(tile), Some(records)) = (out.strategies.as_mut(), ws.strategies.as_ref()) {
-                    tile.add(records, local, (size.x * size.y) as usize, &lambda, image);
+                    tile.add(records, local, (size.x * size.y) as usize, &cmf, image);
                 }
             }
         }
@@ -471,23 +472,19 @@ fn splat_pixel(raster: Vec2, image: UVec2) -> u32 {
 
 impl TileOutput {
     /// One camera sample of the tile's pixel `local` (value `l`) and the
-    /// splats it made, converted to colour with the sample's final
-    /// wavelengths; what the film cannot take is counted, not added.
-    fn add_sample(
-        &mut self,
-        local: usize,
-        l: SampledSpectrum,
-        splats: &[Splat],
-        lambda: &SampledWavelengths,
-        image: UVec2,
-    ) {
-        if let Some(rgb) = self.dropped.admit(l, lambda) {
-            if !add_fixed(&mut self.sums[local], to_fixed(rgb)) {
-                self.dropped.infinite += 1;
+    /// splats it made, converted to colour with the matching functions at
+    /// the sample's final wavelengths; what the film cannot take is counted,
+    /// not added. A zero estimate (light tracing's, always) adds nothing.
+    fn add_sample(&mut self, local: usize, l: SampledSpectrum, splats: &[Splat], cmf: &SampledCmf, image: UVec2) {
+        if l.0 != Vec4::ZERO {
+            if let Some(rgb) = self.dropped.admit(l, cmf) {
+                if !add_fixed(&mut self.sums[local], to_fixed(rgb)) {
+                    self.dropped.infinite += 1;
+                }
             }
         }
         for sp in splats {
-            if let Some(rgb) = self.dropped.admit(sp.l, lambda) {
+            if let Some(rgb) = self.dropped.admit(sp.l, cmf) {
                 self.splats.push((splat_pixel(sp.raster, image), rgb));
             }
         }
@@ -497,9 +494,9 @@ impl TileOutput {
 impl TileStrategies {
     /// A sample's strategy records: t >= 2 ones are summed into the tile's
     /// pixel `local` (of `n`), t = 1 ones kept as splats.
-    fn add(&mut self, records: &[StrategyRecord], local: usize, n: usize, lambda: &SampledWavelengths, image: UVec2) {
+    fn add(&mut self, records: &[StrategyRecord], local: usize, n: usize, cmf: &SampledCmf, image: UVec2) {
         for r in records {
-            let (Some(w), Some(u)) = (self.dropped.admit(r.weighted, lambda), self.dropped.admit(r.unweighted, lambda))
+            let (Some(w), Some(u)) = (self.dropped.admit(r.weighted, cmf), self.dropped.admit(r.unweighted, cmf))
             else {
                 continue;
             };

@@ -30,40 +30,67 @@ static CMF: LazyLock<Vec<[f32; 3]>> = LazyLock::new(|| {
     rows
 });
 
-/// Monte Carlo estimate of XYZ from radiance at the sampled wavelengths:
-/// the average over lanes of cmf(l_i) L_i / p(l_i), divided by the integral of
-/// ybar; lanes with pdf 0 (terminated secondaries) contribute nothing.
-#[inline]
-pub fn to_xyz(l: SampledSpectrum, lambda: &SampledWavelengths) -> Vec3 {
-    let w = l.safe_div(SampledSpectrum(lambda.pdf)).0 / (4.0 * CIE_Y_INTEGRAL);
-    let cmf = |i: u32| CMF.get(i as usize).map_or(Vec3::ZERO, |c| Vec3::from_array(*c));
-    let [x, y, z, zz] = lambda.dense.map(cmf);
-    let xs = Vec4::new(x.x, y.x, z.x, zz.x).dot(w);
-    let ys = Vec4::new(x.y, y.y, z.y, zz.y).dot(w);
-    let zs = Vec4::new(x.z, y.z, z.z, zz.z).dot(w);
-    Vec3::new(xs, ys, zs)
+/// The colour matching functions at one path's sampled wavelengths, as the
+/// linear map from its spectral estimate to a colour: row j holds, per lane
+/// i, cmf_j(l_i) / (4 p(l_i) integral of ybar), the Monte Carlo weights of
+/// XYZ_j = sum_i cmf_j(l_i) L_i / (4 p(l_i)) (zero for a lane with pdf 0: a
+/// terminated secondary contributes nothing). Built once per sample, it
+/// converts the sample's camera estimate and all its splats (light tracing
+/// makes ~3 per sample) with three dot products each.
+#[derive(Clone, Copy, Debug)]
+pub struct SampledCmf {
+    rows: [Vec4; 3],
 }
+
+impl SampledCmf {
+    /// The map to CIE XYZ.
+    #[inline]
+    pub fn xyz(lambda: &SampledWavelengths) -> Self {
+        let w = SampledSpectrum::ONE.safe_div(SampledSpectrum(lambda.pdf)).0 / (4.0 * CIE_Y_INTEGRAL);
+        let cmf = |i: u32| CMF.get(i as usize).map_or(Vec3::ZERO, |c| Vec3::from_array(*c));
+        let [a, b, c, d] = lambda.dense.map(cmf);
+        let row = |k: usize| Vec4::new(a[k], b[k], c[k], d[k]) * w;
+        Self { rows: [row(0), row(1), row(2)] }
+    }
+
+    /// The map to linear sRGB: the XYZ rows through `xyz_to_linear_srgb`.
+    #[inline]
+    pub fn linear_srgb(lambda: &SampledWavelengths) -> Self {
+        let [x, y, z] = Self::xyz(lambda).rows;
+        let m = XYZ_TO_LINEAR_SRGB.transpose();
+        let row = |j: usize| x * m.col(j).x + y * m.col(j).y + z * m.col(j).z;
+        Self { rows: [row(0), row(1), row(2)] }
+    }
+
+    /// The colour of estimate `l`.
+    #[inline]
+    pub fn apply(&self, l: SampledSpectrum) -> Vec3 {
+        Vec3::new(self.rows[0].dot(l.0), self.rows[1].dot(l.0), self.rows[2].dot(l.0))
+    }
+}
+
+/// Monte Carlo estimate of XYZ from radiance at the sampled wavelengths
+/// (`SampledCmf`).
+pub fn to_xyz(l: SampledSpectrum, lambda: &SampledWavelengths) -> Vec3 {
+    SampledCmf::xyz(lambda).apply(l)
+}
+
+/// XYZ to linear sRGB (D65 white), the standard matrix (IEC 61966-2-1).
+const XYZ_TO_LINEAR_SRGB: Mat3 = Mat3::from_cols_array(&[
+    3.240_454_2,
+    -0.969_266,
+    0.055_643_4, //
+    -1.537_138_5,
+    1.876_010_8,
+    -0.204_025_9, //
+    -0.498_531_4,
+    0.041_556,
+    1.057_225_2,
+]);
 
 /// XYZ to linear sRGB (D65 white), the standard matrix.
 pub fn xyz_to_linear_srgb(xyz: Vec3) -> Vec3 {
-    const M: Mat3 = Mat3::from_cols_array(&[
-        3.240_454_2,
-        -0.969_266,
-        0.055_643_4, //
-        -1.537_138_5,
-        1.876_010_8,
-        -0.204_025_9, //
-        -0.498_531_4,
-        0.041_556,
-        1.057_225_2,
-    ]);
-    M * xyz
-}
-
-/// Linear sRGB of a spectral estimate.
-#[inline]
-pub fn to_linear_srgb(l: SampledSpectrum, lambda: &SampledWavelengths) -> Vec3 {
-    xyz_to_linear_srgb(to_xyz(l, lambda))
+    XYZ_TO_LINEAR_SRGB * xyz
 }
 
 /// Exact XYZ of a spectrum (1 nm sums), normalised so a constant v has Y = v.

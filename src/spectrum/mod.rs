@@ -12,7 +12,7 @@ mod rgb;
 mod sampled;
 
 pub use cie::spectrum_to_xyz;
-pub use cie::{to_linear_srgb, to_xyz, xyz_to_linear_srgb, CIE_Y_INTEGRAL, LAMBDA_MAX, LAMBDA_MIN};
+pub use cie::{to_xyz, xyz_to_linear_srgb, SampledCmf, CIE_Y_INTEGRAL, LAMBDA_MAX, LAMBDA_MIN};
 pub use named::{
     blackbody, cauchy, glass_ior, illuminant, metal_eta_k, sellmeier, GLASS_NAMES, ILLUMINANT_NAMES, METAL_NAMES,
 };
