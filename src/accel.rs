@@ -590,9 +590,14 @@ impl PreparedRay {
         if zero != 0 {
             e = edges_in_f64(x, y, e, zero);
         }
-        // Outside unless the signs agree (zeros aside).
+        // Outside unless the signs agree (zeros aside). A block with no lane
+        // inside, most blocks a shadow ray meets, stops here.
         let neg = e[0].cmplt(Vec4::ZERO) | e[1].cmplt(Vec4::ZERO) | e[2].cmplt(Vec4::ZERO);
         let pos = e[0].cmpgt(Vec4::ZERO) | e[1].cmpgt(Vec4::ZERO) | e[2].cmpgt(Vec4::ZERO);
+        let inside = !(neg & pos).bitmask() & lanes;
+        if inside == 0 {
+            return None;
+        }
         let det = (e[0] + e[1]) + e[2];
         let t_scaled = (e[0] * (z[0] * sz) + e[1] * (z[1] * sz)) + e[2] * (z[2] * sz);
         // Range test on t = t_scaled / det before dividing (sec. 3.4), with
@@ -603,7 +608,7 @@ impl PreparedRay {
         // (and t_max * 0 is NaN for an infinite t_max).
         let (ts, ds) = (Vec4::select(det.cmplt(Vec4::ZERO), -t_scaled, t_scaled), det.abs());
         let in_range = ts.cmpgt(Vec4::ZERO) & ts.cmplt(splat(*t_max) * ds);
-        let mut candidates = in_range.bitmask() & !(neg & pos).bitmask() & lanes;
+        let mut candidates = in_range.bitmask() & inside;
         if candidates == 0 {
             return None;
         }
