@@ -16,7 +16,7 @@
 
 use crate::spectrum::{SampledCmf, SampledSpectrum};
 use anyhow::{bail, ensure, Context, Result};
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -85,17 +85,19 @@ pub const MAX_SAMPLE: f32 = (1u64 << 48) as f32;
 
 /// A sample's colour in the film's fixed point (`admit` bounds it),
 /// truncated toward zero. Colours below 8 in magnitude, nearly all of them,
-/// fit an i64 and skip the slower software conversion to i128.
+/// fit an i64 and skip the slower software conversion to i128 (one test
+/// for the three channels).
 #[inline]
 pub fn to_fixed(rgb: Vec3) -> [i128; 3] {
-    rgb.to_array().map(|c| {
-        let x = c as f64 * (FRAC_BITS as f64).exp2();
-        if x.abs() < 9.2e18 {
-            x as i64 as i128
-        } else {
-            x as i128
-        }
-    })
+    let x = rgb.as_dvec3() * (FRAC_BITS as f64).exp2();
+    if x.abs().cmplt(DVec3::splat(9.2e18)).all() {
+        // SAFETY: the test, lane by lane, holds for no NaN or infinity, so
+        // every channel is finite and below 2^63 in magnitude: truncation
+        // to i64 is defined.
+        x.to_array().map(|c| unsafe { c.to_int_unchecked::<i64>() } as i128)
+    } else {
+        x.to_array().map(|c| c as i128)
+    }
 }
 
 /// Adds fixed-point colour `v` to `sum`, unless a channel would leave the
@@ -343,6 +345,24 @@ mod tests {
         }
         assert_eq!(read_exr(&path).unwrap(), (w, h, image));
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// The i64 shortcut truncates as the i128 conversion does, on both sides
+    /// of its threshold (8 = 2^63 / 2^60) and with one large channel among
+    /// small ones.
+    #[test]
+    fn fixed_point_is_the_truncated_product() {
+        let exact = |c: f32| (c as f64 * 2f64.powi(FRAC_BITS)) as i128;
+        let tiny = 1.5 / 2f32.powi(FRAC_BITS); // 1.5 units: truncates to 1
+        let values =
+            [0.0, -0.0, 1e-30, tiny, -tiny, 0.3, -0.3, 7.999_999, -7.999_999, 8.0, -8.0, 1e6, -3e12, MAX_SAMPLE];
+        for &a in &values {
+            for &b in &[0.3, 9.5] {
+                let rgb = Vec3::new(a, b, -a);
+                assert_eq!(to_fixed(rgb), [exact(a), exact(b), exact(-a)], "{rgb}");
+            }
+        }
+        assert_eq!(to_fixed(Vec3::new(0.5, tiny, -tiny)), [1 << (FRAC_BITS - 1), 1, -1]);
     }
 
     #[test]
