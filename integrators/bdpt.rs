@@ -179,7 +179,7 @@ fn next_event(
     lambda: &SampledWavelengths,
 ) -> Option<(SampledSpectrum, Reverse, Vertex)> {
     let (u_light, u) = (sampler.get1d(), sampler.get2d());
-    if !pt.is_connectible(scene) {
+    if !pt.connectible {
         return None;
     }
     let (i, pmf) = scene.sample_light(u_light)?;
@@ -223,7 +223,7 @@ fn vertex_connection(
     pt: &Vertex,
     lambda: &SampledWavelengths,
 ) -> Option<(SampledSpectrum, Reverse)> {
-    if !qs.is_connectible(scene) || !pt.is_connectible(scene) {
+    if !qs.connectible || !pt.connectible {
         return None;
     }
     let g = qs.segment_to(pt)?;

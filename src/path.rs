@@ -55,7 +55,7 @@ use crate::camera::CameraWiSample;
 use crate::geometry::{Frame, Ray, SurfacePoint};
 use crate::integrators::russian_roulette;
 use crate::light::Light;
-use crate::materials::TransportMode;
+use crate::materials::{Bsdf, TransportMode};
 use crate::render::Splat;
 use crate::sampling::Sampler;
 use crate::scene::{Scene, SurfaceInteraction};
@@ -92,6 +92,10 @@ pub struct Vertex {
     pub si: SurfaceInteraction,
     pub beta: SampledSpectrum,
     pub delta: bool,
+    /// Whether a deterministic connection can end here: the pinhole, a
+    /// light, or a surface with a non-specular lobe (found once, when the
+    /// vertex is made; BDPT asks at every connection).
+    pub connectible: bool,
     pub pdf_fwd: f32,
     pub pdf_rev: f32,
     /// Converts a density of leaving this vertex towards the previous vertex
@@ -147,7 +151,13 @@ pub struct PathScratch {
 
 impl Vertex {
     fn new(kind: VertexKind, si: SurfaceInteraction, beta: SampledSpectrum, pdf_fwd: f32) -> Self {
-        Self { kind, si, beta, delta: false, pdf_fwd, pdf_rev: 0.0, g_rev: 0.0, d_vcm: 0.0, d_vc: 0.0 }
+        let connectible = kind != VertexKind::Surface;
+        Self { kind, si, beta, delta: false, connectible, pdf_fwd, pdf_rev: 0.0, g_rev: 0.0, d_vcm: 0.0, d_vc: 0.0 }
+    }
+
+    /// A scattering point of a walk, with the BSDF found there.
+    fn surface(si: SurfaceInteraction, bsdf: &Bsdf, beta: SampledSpectrum) -> Self {
+        Self { connectible: bsdf.flags().is_non_specular(), ..Self::new(VertexKind::Surface, si, beta, 0.0) }
     }
 
     fn endpoint(kind: VertexKind, at: SurfacePoint, wo: Vec3A, light: Option<u32>) -> SurfaceInteraction {
@@ -206,16 +216,6 @@ impl Vertex {
     #[inline]
     pub fn is_delta_light(&self, scene: &Scene) -> bool {
         self.kind == VertexKind::Light && self.emitter(scene).is_some_and(|(_, l)| l.is_delta_position())
-    }
-
-    /// Whether a deterministic connection can end here: the pinhole, a
-    /// light, or a surface with a non-specular lobe.
-    #[inline]
-    pub fn is_connectible(&self, scene: &Scene) -> bool {
-        match self.kind {
-            VertexKind::Camera | VertexKind::Light | VertexKind::Environment => true,
-            VertexKind::Surface => scene.bsdf(&self.si).flags().is_non_specular(),
-        }
     }
 
     /// Unit direction from this vertex towards `next`, and 1 / d^2 (1 when
@@ -455,10 +455,10 @@ fn random_walk(
             }
             return;
         };
-        push_vertex(path, Vertex::new(VertexKind::Surface, si, beta, 0.0), pdf);
         // Fetch the BSDF now, even if the walk stops here: connections will
         // evaluate it, and a dispersive one must end the secondaries first.
         let bsdf = scene.bsdf_at(&si, lambda);
+        push_vertex(path, Vertex::surface(si, bsdf, beta), pdf);
         if path.len() >= max_vertices {
             return;
         }
@@ -514,7 +514,7 @@ fn push_vertex(path: &mut Vec<Vertex>, mut v: Vertex, pdf: f32) {
 /// (docs/performance.md, "Session 16").
 #[inline(always)]
 pub fn connect_to_camera(scene: &Scene, v: &Vertex, lambda: &SampledWavelengths) -> Option<CameraConnection> {
-    if v.is_infinite() || !v.is_connectible(scene) {
+    if v.is_infinite() || !v.connectible {
         return None;
     }
     let cs: CameraWiSample = scene.camera.sample_wi(v.p())?;

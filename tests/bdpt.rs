@@ -507,13 +507,13 @@ fn walk_weights(
             if s + t < 2 || (t > 1 && s != 0 && cam[t - 1].is_infinite()) {
                 continue;
             }
-            let connectible = |v: &Vertex| !v.is_infinite() && v.is_connectible(scene);
+            let connectible = |v: &Vertex| !v.is_infinite() && v.connectible;
             let sampled = match (s, t) {
                 (0, _) if cam[t - 1].le(scene, &cam[t - 2], lambda).is_black() => continue,
                 (0, _) => None,
                 (_, 1) if !connectible(&lig[s - 1]) => continue,
                 (_, 1) => Some(pinhole),
-                (_, _) if !cam[t - 1].is_connectible(scene) || !lig[s - 1].is_connectible(scene) => continue,
+                (_, _) if !cam[t - 1].connectible || !lig[s - 1].connectible => continue,
                 (1, _) => Some(lig[0]),
                 _ => None,
             };

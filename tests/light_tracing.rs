@@ -45,7 +45,7 @@ impl Integrator for LightWithoutCos {
     ) -> SampledSpectrum {
         light_subpath(scene, sampler, lambda, 1024, &mut ws.paths.light);
         for v in &ws.paths.light {
-            if v.is_infinite() || !v.is_connectible(scene) {
+            if v.is_infinite() || !v.connectible {
                 continue;
             }
             let Some(cs) = scene.camera.sample_wi(v.p()) else {
