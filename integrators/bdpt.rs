@@ -78,7 +78,7 @@ impl Integrator for Bdpt {
         let raster = pixel.as_vec2() + sampler.get2d();
         let Workspace { splats, paths, strategies } = ws;
         camera_subpath(scene, raster, sampler, lambda, self.max_depth, &mut paths.camera);
-        light_subpath(scene, sampler, lambda, self.max_depth, &mut paths.light);
+        light_subpath::<true>(scene, sampler, lambda, self.max_depth, &mut paths.light);
         init_mis(scene, &mut paths.camera, Subpath::Camera, self.mis);
         init_mis(scene, &mut paths.light, Subpath::Light, self.mis);
         let (camera, light, lambda) = (&paths.camera[..], &paths.light[..], &*lambda);

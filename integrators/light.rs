@@ -48,7 +48,7 @@ impl Integrator for LightTracer {
         ws: &mut Workspace,
     ) -> SampledSpectrum {
         let path = &mut ws.paths.light;
-        light_subpath(scene, sampler, lambda, self.max_depth, path);
+        light_subpath::<false>(scene, sampler, lambda, self.max_depth, path);
         for v in path.iter() {
             if let Some(c) = connect_to_camera(scene, v, lambda) {
                 ws.splats.push(c.splat);

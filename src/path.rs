@@ -20,6 +20,12 @@
 //!   (a delta density; MIS remaps it to 1 so it cancels, §10.3.5);
 //! - `delta`: the vertex scattered by a specular (delta) lobe.
 //!
+//! Only MIS reads the densities. A walk records them when its `MIS`
+//! parameter is true (BDPT); light tracing, whose strategies all have
+//! weight 1, walks with `MIS = false` and its vertices keep `pdf_fwd` (past
+//! the light origin), `pdf_rev` and `g_rev` at zero: that saves a BSDF
+//! density and a segment per vertex, ~3 % of a light path.
+//!
 //! Vertices at infinity (the environment light, `VertexKind::Environment`)
 //! follow pbrt-v3/v4: their own density is the solid-angle density of their
 //! direction (light-choice pmf x `pdf_li`), a solid-angle density converted
@@ -101,7 +107,8 @@ pub struct Vertex {
     /// Converts a density of leaving this vertex towards the previous vertex
     /// of its own subpath into area measure there (`Segment::to_this` of the
     /// segment arriving here), so a reverse density found at a connection
-    /// needs no geometry recomputed; 0 for a subpath's first vertex.
+    /// needs no geometry recomputed; 0 for a subpath's first vertex and in
+    /// walks without MIS.
     pub g_rev: f32,
     /// BDPT's recursive MIS quantities, set after the walk by
     /// `integrators::bdpt` (which explains them); zero until then.
@@ -361,7 +368,7 @@ pub fn camera_subpath(
     // beta = We cos / (pdf_pos pdf_dir) = 1 for a pixel's box filter (camera.rs).
     path.push(Vertex::camera(scene, SampledSpectrum::ONE));
     let pdf_dir = scene.camera.pdf_we_dir(ray.d);
-    random_walk(
+    random_walk::<true>(
         scene,
         ray,
         SampledSpectrum::ONE,
@@ -376,9 +383,10 @@ pub fn camera_subpath(
 
 /// Generates a light subpath into `path` (cleared first): a light chosen by
 /// power, an emitted ray from `sample_le`, then an importance-mode random
-/// walk, up to `max_depth` + 1 vertices (pbrt-v3 `GenerateLightSubpath`).
-/// Leaves `path` empty if the scene has no light or emission fails.
-pub fn light_subpath(
+/// walk, up to `max_depth` + 1 vertices (pbrt-v3 `GenerateLightSubpath`),
+/// with the densities MIS needs if `MIS` (see the module doc). Leaves
+/// `path` empty if the scene has no light or emission fails.
+pub fn light_subpath<const MIS: bool>(
     scene: &Scene,
     sampler: &mut Sampler,
     lambda: &mut SampledWavelengths,
@@ -415,18 +423,29 @@ pub fn light_subpath(
         (v, v.beta * (cos / le.pdf_dir), le.pdf_dir)
     };
     path.push(origin);
-    random_walk(scene, ray, beta, pdf_walk, sampler, lambda, TransportMode::Importance, max_depth as usize + 1, path);
+    random_walk::<MIS>(
+        scene,
+        ray,
+        beta,
+        pdf_walk,
+        sampler,
+        lambda,
+        TransportMode::Importance,
+        max_depth as usize + 1,
+        path,
+    );
 }
 
 /// Extends `path` (holding the subpath's endpoint) by tracing `ray` and
 /// sampling BSDFs (pbrt-v3 `RandomWalk`) until `max_vertices`, a miss,
 /// absorption or roulette. `beta` is the throughput the ray carries and
 /// `pdf` the density (solid angle; planar from the environment) with which
-/// its direction was chosen. Always inlined, as the profile-guided build
+/// its direction was chosen; with `MIS`, each vertex also gets its
+/// densities in area measure. Always inlined, as the profile-guided build
 /// chose (docs/performance.md, "Session 16").
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn random_walk(
+fn random_walk<const MIS: bool>(
     scene: &Scene,
     mut ray: Ray,
     mut beta: SampledSpectrum,
@@ -451,14 +470,14 @@ fn random_walk(
             // a light walk that escapes carries importance to nothing.
             if let (TransportMode::Radiance, Some((i, _))) = (mode, scene.environment()) {
                 let far = ray.o + ray.d * (2.0 * scene.radius);
-                push_vertex(path, Vertex::environment(i, far, -ray.d, beta, 0.0), pdf);
+                push_vertex::<MIS>(path, Vertex::environment(i, far, -ray.d, beta, 0.0), pdf);
             }
             return;
         };
         // Fetch the BSDF now, even if the walk stops here: connections will
         // evaluate it, and a dispersive one must end the secondaries first.
         let bsdf = scene.bsdf_at(&si, lambda);
-        push_vertex(path, Vertex::surface(si, bsdf, beta), pdf);
+        push_vertex::<MIS>(path, Vertex::surface(si, bsdf, beta), pdf);
         if path.len() >= max_vertices {
             return;
         }
@@ -468,11 +487,12 @@ fn random_walk(
         };
         let wi = si.frame.to_world(bs.wi);
         beta *= bs.f * (bs.wi.z.abs() / bs.pdf);
-        let mut pdf_rev = bsdf.pdf(bs.wi, wo, lambda, mode.flip());
-        pdf = bs.pdf;
-        if bs.is_specular() {
-            pdf = 0.0;
-            pdf_rev = 0.0;
+        // A delta density is stored as 0 (module doc).
+        pdf = select_f32(bs.is_specular(), 0.0, bs.pdf);
+        if MIS {
+            let pdf_rev = bsdf.pdf(bs.wi, wo, lambda, mode.flip());
+            let n = path.len();
+            path[n - 2].pdf_rev = select_f32(bs.is_specular(), 0.0, pdf_rev) * path[n - 1].g_rev;
         }
         match mode {
             TransportMode::Importance => beta *= si.shading_correction(si.wo, wi),
@@ -481,7 +501,6 @@ fn random_walk(
         }
         let n = path.len();
         path[n - 1].delta = bs.is_specular();
-        path[n - 2].pdf_rev = pdf_rev * path[n - 1].g_rev;
         // Roulette on the throughput relative to the walk's start.
         let mut rel = beta / beta0;
         if beta.is_black() || !russian_roulette(&mut rel, eta_scale, depth, sampler.get1d()) {
@@ -493,14 +512,16 @@ fn random_walk(
 }
 
 /// Appends `v`, reached from the path's last vertex by a direction chosen
-/// with density `pdf`: its forward density in area measure and the factor
-/// that will convert its reverse density, from one `Segment`.
+/// with density `pdf`; with `MIS`, its forward density in area measure and
+/// the factor that will convert its reverse density, from one `Segment`.
 #[inline]
-fn push_vertex(path: &mut Vec<Vertex>, mut v: Vertex, pdf: f32) {
-    let prev = path.last().expect("a walk starts at an endpoint");
-    if let Some(g) = prev.segment_to(&v) {
-        v.pdf_fwd = pdf * g.to_next;
-        v.g_rev = g.to_this;
+fn push_vertex<const MIS: bool>(path: &mut Vec<Vertex>, mut v: Vertex, pdf: f32) {
+    if MIS {
+        let prev = path.last().expect("a walk starts at an endpoint");
+        if let Some(g) = prev.segment_to(&v) {
+            v.pdf_fwd = pdf * g.to_next;
+            v.g_rev = g.to_this;
+        }
     }
     path.push(v);
 }

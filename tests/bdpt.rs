@@ -537,6 +537,42 @@ fn bookkeeping(out: &mut MisCheck, rel: f64) {
     out.densities_far_off += (rel > 1e-2) as usize;
 }
 
+/// Light tracing's walk (`MIS = false`) meets the same vertices with the
+/// same throughput, lobes and random numbers as BDPT's, and leaves the
+/// densities it skips at zero (which BDPT's walk does fill in).
+#[test]
+fn a_light_walk_without_mis_is_the_same_walk() {
+    let (mut with, mut without) = (Vec::new(), Vec::new());
+    let mut densities = 0;
+    for scene_seed in seed(0)..seed(8) {
+        let scene = random_scene(scene_seed);
+        for n in 0..200 {
+            let start = || {
+                let mut sampler = Sampler::new(scene_seed, n, 2);
+                let lambda = SampledWavelengths::sample_visible(sampler.get1d());
+                (sampler, lambda)
+            };
+            let (mut s1, mut l1) = start();
+            light_subpath::<true>(&scene, &mut s1, &mut l1, 8, &mut with);
+            let (mut s2, mut l2) = start();
+            light_subpath::<false>(&scene, &mut s2, &mut l2, 8, &mut without);
+            assert_eq!(s1.get1d(), s2.get1d(), "the walks drew different numbers");
+            assert_eq!((l1.lambda, l1.pdf), (l2.lambda, l2.pdf));
+            assert_eq!(with.len(), without.len());
+            for (i, (a, b)) in with.iter().zip(&without).enumerate() {
+                let same = |v: &Vertex| (v.kind, v.p(), v.beta.0, v.delta, v.connectible, v.si.wo);
+                assert_eq!(same(a), same(b), "scene {scene_seed}, path {n}, vertex {i}");
+                assert_eq!((b.pdf_rev, b.g_rev), (0.0, 0.0));
+                if i > 0 {
+                    assert_eq!(b.pdf_fwd, 0.0);
+                }
+                densities += (a.pdf_rev != 0.0) as usize;
+            }
+        }
+    }
+    assert!(densities > 100, "BDPT's walks recorded only {densities} reverse densities");
+}
+
 #[test]
 fn mis_weights_of_all_strategies_sum_to_one() {
     let mut out = MisCheck {
@@ -566,7 +602,7 @@ fn mis_weights_of_all_strategies_sum_to_one() {
             let mut lambda = SampledWavelengths::sample_visible(sampler.get1d());
             let raster = sampler.get2d() * Vec2::new(32.0, 32.0);
             camera_subpath(&scene, raster, &mut sampler, &mut lambda, 8, &mut cam);
-            light_subpath(&scene, &mut sampler, &mut lambda, 8, &mut lig);
+            light_subpath::<true>(&scene, &mut sampler, &mut lambda, 8, &mut lig);
             walk_weights(&scene, &mut cam, &mut lig, &lambda, &mut out);
             // Full paths that end where the camera walk found emission.
             for k in 1..cam.len() {

@@ -43,7 +43,7 @@ impl Integrator for LightWithoutCos {
         lambda: &mut SampledWavelengths,
         ws: &mut Workspace,
     ) -> SampledSpectrum {
-        light_subpath(scene, sampler, lambda, 1024, &mut ws.paths.light);
+        light_subpath::<false>(scene, sampler, lambda, 1024, &mut ws.paths.light);
         for v in &ws.paths.light {
             if v.is_infinite() || !v.connectible {
                 continue;
