@@ -24,7 +24,7 @@
 //! parameter is true (BDPT); light tracing, whose strategies all have
 //! weight 1, walks with `MIS = false` and its vertices keep `pdf_fwd` (past
 //! the light origin), `pdf_rev` and `g_rev` at zero: that saves a BSDF
-//! density and a segment per vertex, ~3 % of a light path.
+//! density and a segment per vertex, ~4 % of a light path.
 //!
 //! Vertices at infinity (the environment light, `VertexKind::Environment`)
 //! follow pbrt-v3/v4: their own density is the solid-angle density of their
