@@ -88,7 +88,7 @@ const XYZ_TO_LINEAR_SRGB: Mat3 = Mat3::from_cols_array(&[
     1.057_225_2,
 ]);
 
-/// XYZ to linear sRGB (D65 white), the standard matrix.
+/// `XYZ_TO_LINEAR_SRGB` applied to a colour.
 pub fn xyz_to_linear_srgb(xyz: Vec3) -> Vec3 {
     XYZ_TO_LINEAR_SRGB * xyz
 }
@@ -125,6 +125,24 @@ mod tests {
         let s: f32 = CMF.iter().map(|c| c[1]).sum();
         assert!((s - CIE_Y_INTEGRAL).abs() < 1e-3, "{s}");
         assert!((Spectrum::Constant(2.5).luminance() - 2.5).abs() < 1e-4);
+    }
+
+    /// The film's one map equals the two steps it folds together, the XYZ
+    /// estimate and then the sRGB matrix, at wavelengths across the range
+    /// and with the secondaries ended (lanes of pdf 0 add nothing).
+    #[test]
+    fn srgb_map_is_the_matrix_after_the_xyz_estimate() {
+        let l = SampledSpectrum::new(0.7, 2.5, 0.01, 1.3);
+        for k in 0..64 {
+            let mut lambda = SampledWavelengths::sample_visible((k as f32 + 0.5) / 64.0);
+            if k % 2 == 1 {
+                lambda.terminate_secondary();
+            }
+            let two_steps = xyz_to_linear_srgb(to_xyz(l, &lambda));
+            let one_map = SampledCmf::linear_srgb(&lambda).apply(l);
+            let scale = two_steps.abs().max_element().max(1e-3);
+            assert!((one_map - two_steps).abs().max_element() < 1e-5 * scale, "{one_map} vs {two_steps}, lambda {k}");
+        }
     }
 
     #[test]
