@@ -29,6 +29,9 @@ pub struct Camera {
     /// Half extents of the image rectangle on the plane z = 1.
     half_w: f32,
     half_h: f32,
+    /// Raster pixels per unit of that plane along right and up (the second
+    /// negative: rows go down), so that a projection divides once, by z.
+    raster_scale: Vec2,
 }
 
 /// A direction from a scene point to the camera, with its importance.
@@ -64,7 +67,12 @@ impl Camera {
         let [forward, right, up] = Self::frame(forward, up).unwrap_or([Vec3A::NAN; 3]);
         let half_h = (fov_y_deg.to_radians() * 0.5).tan();
         let half_w = half_h * width as f32 / height as f32;
-        Self { position, forward, right, up, width, height, half_w, half_h }
+        let raster_scale = Self::raster_scale(width, height, half_w, half_h);
+        Self { position, forward, right, up, width, height, half_w, half_h, raster_scale }
+    }
+
+    fn raster_scale(width: u32, height: u32, half_w: f32, half_h: f32) -> Vec2 {
+        Vec2::new(0.5 * width as f32 / half_w, -0.5 * height as f32 / half_h)
     }
 
     /// The orthonormal (forward, right, up) of a view direction and an up
@@ -101,6 +109,7 @@ impl Camera {
         c.width = width;
         c.height = height;
         c.half_w = self.half_h * width as f32 / height as f32;
+        c.raster_scale = Self::raster_scale(width, height, c.half_w, c.half_h);
         c
     }
 
@@ -138,12 +147,14 @@ impl Camera {
         if z <= 0.0 {
             return None;
         }
-        let sx = d.dot(self.right) / z;
-        let sy = d.dot(self.up) / z;
-        let rx = (sx / self.half_w + 1.0) * 0.5 * self.width as f32;
-        let ry = (1.0 - sy / self.half_h) * 0.5 * self.height as f32;
-        let inside = (0.0..self.width as f32).contains(&rx) && (0.0..self.height as f32).contains(&ry);
-        inside.then_some(Vec2::new(rx, ry))
+        // The point on the plane z = 1, in pixels from the image centre:
+        // one division per coordinate, where dividing by z and by the
+        // half extent in turn took two, in a chain (docs/performance.md,
+        // "Session 18").
+        let (w, h) = (self.width as f32, self.height as f32);
+        let r = Vec2::new(d.dot(self.right), d.dot(self.up)) * self.raster_scale / z + Vec2::new(0.5 * w, 0.5 * h);
+        let inside = (0.0..w).contains(&r.x) && (0.0..h).contains(&r.y);
+        inside.then_some(r)
     }
 
     /// Importance We of a unit direction leaving the pinhole (0 outside the
