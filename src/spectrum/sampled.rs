@@ -185,10 +185,10 @@ impl SampledWavelengths {
 /// 3 % of pbrt's p at N = 1024 (`tabulated_pdf_follows_pbrt`), and within
 /// 1.1 % from 370 to 760 nm; the most is in the widest segment, 4.2 nm at
 /// 830 nm, where p also changes fastest relative to itself. Drawing
-/// from it is two loads per lane; the analytic inverse, a vector logarithm
+/// from it is three loads per lane; the analytic inverse, a vector logarithm
 /// whose polynomial is one chain of dependent multiplies, took ~4 % of
 /// `light`'s time (docs/performance.md, "Session 18").
-pub(crate) struct VisibleTable {
+struct VisibleTable {
     lambda: Vec<f32>,
     pdf: Vec<f32>,
 }
