@@ -67,9 +67,10 @@ fn renders_are_bit_identical_across_thread_counts() {
 
 /// Sample ranges rendered one after another into one film give the bits
 /// of one render of them all (the film's sums are exact). 35 tiles of 16 x
-/// 16 and 2 spp: light tracing's and BDPT's splats are held back and added
-/// to the film in batches of about as many as the image has pixels, so
-/// every call ends with some held back, which must still reach the film.
+/// 16, 4 spp in one call or three: light tracing's and BDPT's splats are
+/// held back and added to the film in batches of about as many as the
+/// image has pixels, so every call ends with some held back, which must
+/// still reach the film.
 #[test]
 fn sample_ranges_add_up_to_one_render() {
     let (w, h) = (112, 80);
