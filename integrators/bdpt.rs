@@ -53,7 +53,7 @@ use crate::sampling::Sampler;
 use crate::scene::Scene;
 use crate::select::select_f32;
 use crate::spectrum::{SampledSpectrum, SampledWavelengths};
-use glam::{UVec2, Vec2};
+use glam::{UVec2, Vec2, Vec4};
 
 pub struct Bdpt {
     max_depth: u32,
@@ -364,21 +364,24 @@ struct End {
 }
 
 impl End {
+    /// A side with no vertex (the camera side of t = 1, the light side of
+    /// s = 0): no strategy differs from this one there, so its sum is 0.
+    const NONE: Self = Self { pdf_fwd: 0.0, d_vcm: 0.0, d_vc: 0.0, prev_pdf_fwd: 0.0 };
+
     fn of(v: &Vertex, prev: Option<&Vertex>) -> Self {
         Self { pdf_fwd: v.pdf_fwd, d_vcm: v.d_vcm, d_vc: v.d_vc, prev_pdf_fwd: prev.map_or(0.0, |p| p.pdf_fwd) }
     }
 
     /// S_L or S_C of `init_mis` (Georgiev et al. tech. rep. eqs. (40)-(41)
-    /// in ratio form) for the reverse densities `rev` at the connection
-    /// vertex and `rev_prev` at its predecessor.
+    /// in ratio form) from the ratios R at the connection vertex (`r`) and
+    /// at its predecessor (`r_prev`).
     #[inline]
-    fn sum(&self, rev: f32, rev_prev: f32, h: MisHeuristic) -> f32 {
+    fn sum(&self, r: f32, r_prev: f32) -> f32 {
         // Both terms are computed and the zero cases selected (their ratios
         // may then be infinite, times 0): whether d_vc or the sum is 0
         // depends on the vertices' kinds, in no order a predictor learns.
-        let via_prev = ratio(h, rev_prev, self.prev_pdf_fwd) * self.d_vc;
-        let inner = self.d_vcm + select_f32(self.d_vc != 0.0, via_prev, 0.0);
-        select_f32(inner != 0.0, ratio(h, rev, self.pdf_fwd) * inner, 0.0)
+        let inner = self.d_vcm + select_f32(self.d_vc != 0.0, r_prev * self.d_vc, 0.0);
+        select_f32(inner != 0.0, r * inner, 0.0)
     }
 }
 
@@ -388,27 +391,32 @@ impl End {
 /// camera vertices.
 #[derive(Clone, Copy, Debug)]
 struct Ends {
-    light: Option<End>,
-    camera: Option<End>,
+    light: End,
+    camera: End,
 }
 
 impl Ends {
     fn new(light: &[Vertex], camera: &[Vertex], sampled: Option<&Vertex>, s: usize, t: usize) -> Self {
         let light = match s {
-            0 => None,
-            1 if t > 1 => Some(End::of(sampled.expect("s = 1 has a sampled light vertex"), None)),
-            _ => Some(End::of(&light[s - 1], s.checked_sub(2).map(|i| &light[i]))),
+            0 => End::NONE,
+            1 if t > 1 => End::of(sampled.expect("s = 1 has a sampled light vertex"), None),
+            _ => End::of(&light[s - 1], s.checked_sub(2).map(|i| &light[i])),
         };
-        let camera = (t > 1).then(|| End::of(&camera[t - 1], Some(&camera[t - 2])));
+        let camera = if t > 1 { End::of(&camera[t - 1], Some(&camera[t - 2])) } else { End::NONE };
         Self { light, camera }
     }
 
     /// The MIS weight 1 / (1 + S_C + S_L) (Georgiev et al. tech. rep.
-    /// eq. (37)).
+    /// eq. (37)). The four ratios R (`ratio`) are one vector division,
+    /// lane for lane the scalar ones.
     #[inline]
     fn weight(&self, rev: &Reverse, h: MisHeuristic) -> f32 {
-        let side = |end: Option<End>, rev: f32, rev_prev: f32| end.map_or(0.0, |e| e.sum(rev, rev_prev, h));
-        1.0 / (1.0 + side(self.camera, rev.pt, rev.pt_minus) + side(self.light, rev.qs, rev.qs_minus))
+        let (c, l) = (&self.camera, &self.light);
+        let num = Vec4::new(rev.pt, rev.pt_minus, rev.qs, rev.qs_minus);
+        let den = Vec4::new(c.pdf_fwd, c.prev_pdf_fwd, l.pdf_fwd, l.prev_pdf_fwd);
+        let remap0 = |v: Vec4| Vec4::select(v.cmpeq(Vec4::ZERO), Vec4::ONE, v);
+        let r = h.terms(remap0(num) / remap0(den));
+        1.0 / (1.0 + c.sum(r.x, r.y) + l.sum(r.z, r.w))
     }
 }
 

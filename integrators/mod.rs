@@ -13,7 +13,7 @@ use crate::render::Workspace;
 use crate::sampling::Sampler;
 use crate::scene::Scene;
 use crate::spectrum::{SampledSpectrum, SampledWavelengths};
-use glam::UVec2;
+use glam::{UVec2, Vec4};
 
 /// One unbiased estimator of the pixel integral (box filter, CIE-weighted
 /// spectral radiance, see ARCHITECTURE.md).
@@ -89,6 +89,16 @@ impl MisHeuristic {
                     0.0
                 }
             }
+        }
+    }
+
+    /// `term` of each lane.
+    #[inline]
+    pub fn terms(self, r: Vec4) -> Vec4 {
+        match self {
+            MisHeuristic::Power => r * r,
+            MisHeuristic::Balance => r,
+            MisHeuristic::Uniform => Vec4::select(r.cmpgt(Vec4::ZERO), Vec4::ONE, Vec4::ZERO),
         }
     }
 }
