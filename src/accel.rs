@@ -262,7 +262,10 @@ impl Accel {
         if self.bvh.nodes.is_empty() {
             return best;
         }
-        let oct_inv4 = r.oct_inv4;
+        // Any hit will do for occlusion, whatever the order in which the
+        // children are visited: storage order (octant 0) spares the
+        // per-node reordering and the ray's octant.
+        let oct_inv4 = if ANY_HIT { 0 } else { r.oct_inv4 };
         let mut stack = GroupStack::new();
         // The root as the only inner child of a virtual parent.
         let mut nodes = (0u32, 0x8000_0000u32);
