@@ -487,7 +487,7 @@ fn check_path(scene: &Scene, x: &[Vertex], lambda: &SampledWavelengths, out: &mu
     }
 }
 
-/// Every strategy (s, t) of one sample's subpaths that `connect` would
+/// Every strategy (s, t) of one sample's subpaths that `Bdpt::sample` would
 /// weight (connectible ends, emission for s = 0; the light origin stands in
 /// for the s = 1 light sample), weighted by `mis_weight` and by pbrt's
 /// `MISWeight`, with the power heuristic.
