@@ -163,9 +163,8 @@ impl Connection {
 /// s = 0: the camera subpath's vertex z_{t-1} is on an emitter.
 fn emitter_hit(scene: &Scene, camera: &[Vertex], t: usize, lambda: &SampledWavelengths) -> Option<Connection> {
     let (pt_minus, pt) = (&camera[t - 2], &camera[t - 1]);
-    if pt.si.light.is_none() {
-        return None; // most vertices emit nothing
-    }
+    // Most vertices emit nothing: none of the work below for them.
+    pt.si.light?;
     let l = pt.beta * pt.le(scene, pt_minus, lambda);
     if l.is_black() {
         return None;
