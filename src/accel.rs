@@ -528,7 +528,12 @@ impl PreparedRay {
     #[inline(always)]
     fn new(ray: &Ray) -> Option<Self> {
         let d = ray.d;
-        if !(ray.o.is_finite() && d.is_finite() && d.length_squared() > 0.0) {
+        // Both finite in one test: x - x is 0 exactly when x is finite
+        // (inf - inf and NaN give NaN), which is the point of the lint's
+        // "equal operands".
+        #[allow(clippy::eq_op)]
+        let finite = ((ray.o - ray.o) + (d - d)).cmpeq(Vec3A::ZERO).all();
+        if !(finite && d.length_squared() > 0.0) {
             return None;
         }
         // kz: the first axis of largest |d|; (kx, ky) the next two
@@ -842,6 +847,28 @@ mod tests {
             Vec3A::new(0.0, 1.0, 0.0),
         ];
         vec![[c[0], c[1], c[2]], [c[0], c[2], c[3]]]
+    }
+
+    /// A ray with a non-finite origin or direction, or a zero direction,
+    /// hits nothing (`PreparedRay::new` refuses it). Without that check a
+    /// NaN direction would index past the axis-order table and panic.
+    #[test]
+    fn rays_that_are_not_finite_hit_nothing() {
+        let accel = Accel::build(&quad());
+        let (o, d) = (Vec3A::new(0.5, 0.5, 1.0), -Vec3A::Z);
+        assert!(accel.intersect(&Ray::new(o, d), f32::INFINITY).is_some(), "the control ray must hit");
+        for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+            for lane in 0..3 {
+                let mut v = Vec3A::ZERO;
+                v[lane] = bad;
+                for ray in [Ray::new(o + v, d), Ray::new(o, d + v)] {
+                    assert!(accel.intersect(&ray, f32::INFINITY).is_none(), "{ray:?}");
+                    assert!(!accel.occluded(&ray, f32::INFINITY), "{ray:?}");
+                }
+            }
+        }
+        let zero = Ray::new(o, Vec3A::ZERO);
+        assert!(accel.intersect(&zero, f32::INFINITY).is_none() && !accel.occluded(&zero, f32::INFINITY));
     }
 
     #[test]
