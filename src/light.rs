@@ -58,8 +58,6 @@ pub struct LightLiSample {
     pub l: SampledSpectrum,
     /// Unit direction from the reference point towards the light.
     pub wi: Vec3A,
-    /// Distance to the light point (infinite for the environment).
-    pub dist: f32,
     pub p: Vec3A,
     /// Bound on the rounding error of `p` (`barycentric_error`).
     pub p_error: Vec3A,
@@ -161,7 +159,7 @@ impl Light {
                     return None;
                 }
                 let pdf_w = dist2 / (cos_l.abs() * a.area);
-                Some(LightLiSample { l, wi, dist, p, p_error, n: a.n, pdf_w, slot: a.slot })
+                Some(LightLiSample { l, wi, p, p_error, n: a.n, pdf_w, slot: a.slot })
             }
             Light::Point(pl) => {
                 let to = pl.p - p_ref;
@@ -174,7 +172,6 @@ impl Light {
                 Some(LightLiSample {
                     l,
                     wi: to / dist,
-                    dist,
                     p: pl.p,
                     p_error: Vec3A::ZERO,
                     n: Vec3A::ZERO,
@@ -187,7 +184,6 @@ impl Light {
                 Some(LightLiSample {
                     l: e.le.sample(lambda),
                     wi,
-                    dist: f32::INFINITY,
                     p: p_ref + wi * (2.0 * e.radius),
                     p_error: Vec3A::ZERO,
                     n: Vec3A::ZERO,
