@@ -272,24 +272,21 @@ pub enum Subpath {
     Light,
 }
 
-/// A delta density (stored as 0) becomes 1, so it cancels in the ratios.
+/// A delta density (stored as 0) becomes 1, so it cancels in the ratios
+/// (each lane).
 #[inline]
-fn remap0(x: f32) -> f32 {
-    if x != 0.0 {
-        x
-    } else {
-        1.0
-    }
+fn remap0(x: Vec4) -> Vec4 {
+    Vec4::select(x.cmpeq(Vec4::ZERO), Vec4::ONE, x)
 }
 
-/// R_j of `init_mis`: the ratio of the densities with which the other and
-/// the own subpath make a vertex, through the heuristic (pbrt's
-/// `remap0(pdfRev) / remap0(pdfFwd)`; every heuristic maps a product of
-/// ratios to the product of their images, so the sums can be built factor
-/// by factor).
+/// R_j of `init_mis` for each lane's densities: the ratio of the densities
+/// with which the other and the own subpath make a vertex, through the
+/// heuristic (pbrt's `remap0(pdfRev) / remap0(pdfFwd)`; every heuristic maps
+/// a product of ratios to the product of their images, so the sums can be
+/// built factor by factor).
 #[inline]
-fn ratio(h: MisHeuristic, rev: f32, fwd: f32) -> f32 {
-    h.term(remap0(rev) / remap0(fwd))
+fn ratios(h: MisHeuristic, rev: Vec4, fwd: Vec4) -> Vec4 {
+    h.terms(remap0(rev) / remap0(fwd))
 }
 
 /// Sets the recursive MIS quantities of every vertex of a subpath v_0 ..
@@ -332,7 +329,8 @@ pub fn init_mis(scene: &Scene, path: &mut [Vertex], subpath: Subpath, h: MisHeur
                 let prev = &path[m - 1];
                 let allowed = (prev.d_vcm != 0.0 && !prev.delta) as u8 as f32;
                 if m >= 2 && prev.d_vc != 0.0 {
-                    allowed + ratio(h, path[m - 2].pdf_rev, path[m - 2].pdf_fwd) * prev.d_vc
+                    allowed
+                        + ratios(h, Vec4::splat(path[m - 2].pdf_rev), Vec4::splat(path[m - 2].pdf_fwd)).x * prev.d_vc
                 } else {
                     allowed
                 }
@@ -432,15 +430,14 @@ impl Ends {
     }
 
     /// The MIS weight 1 / (1 + S_C + S_L) (Georgiev et al. tech. rep.
-    /// eq. (37)). The four ratios R (`ratio`) are one vector division,
+    /// eq. (37)). The four ratios R (`ratios`) are one vector division,
     /// lane for lane the scalar ones.
     #[inline]
     fn weight(&self, rev: &Reverse, h: MisHeuristic) -> f32 {
         let (c, l) = (&self.camera, &self.light);
         let num = Vec4::new(rev.pt, rev.pt_minus, rev.qs, rev.qs_minus);
         let den = Vec4::new(c.pdf_fwd, c.prev_pdf_fwd, l.pdf_fwd, l.prev_pdf_fwd);
-        let remap0 = |v: Vec4| Vec4::select(v.cmpeq(Vec4::ZERO), Vec4::ONE, v);
-        let r = h.terms(remap0(num) / remap0(den));
+        let r = ratios(h, num, den);
         1.0 / (1.0 + c.sum(r.x, r.y) + l.sum(r.z, r.w))
     }
 }
@@ -485,7 +482,7 @@ mod tests {
 
     #[test]
     fn remap0_only_touches_zero() {
-        assert_eq!(remap0(0.0), 1.0);
-        assert_eq!(remap0(0.25), 0.25);
+        let v = remap0(Vec4::new(0.0, 0.25, -0.0, 3.0)).to_array();
+        assert_eq!(v, [1.0, 0.25, 1.0, 3.0]);
     }
 }

@@ -79,17 +79,7 @@ impl MisHeuristic {
     /// denominator of strategy s's weight.
     #[inline]
     pub fn term(self, r: f32) -> f32 {
-        match self {
-            MisHeuristic::Power => r * r,
-            MisHeuristic::Balance => r,
-            MisHeuristic::Uniform => {
-                if r > 0.0 {
-                    1.0
-                } else {
-                    0.0
-                }
-            }
-        }
+        self.terms(Vec4::splat(r)).x
     }
 
     /// `term` of each lane.
