@@ -1,11 +1,13 @@
 //! BVH build time and traversal throughput (rays/s) on incoherent rays:
-//! a Cornell-box-sized scene and a ~1.3M-triangle icosphere.
+//! a Cornell-box-sized scene and a ~1.3M-triangle icosphere; one ray at a
+//! time and eight to a packet (`closest8`), and a pixel's camera rays, the
+//! coherent case packets are for.
 //!
 //! `cargo bench --bench bvh`; criterion reports elements/s = rays/s.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use glam::{Affine3A, Vec3A};
-use prism::accel::Accel;
+use prism::accel::{Accel, LANES};
 use prism::geometry::Ray;
 use prism::shapes::Mesh;
 use rand_xoshiro::rand_core::{Rng, SeedableRng};
@@ -61,6 +63,21 @@ fn cornell_box() -> Vec<[Vec3A; 3]> {
     m.iter().flat_map(|m| m.triangles()).collect()
 }
 
+/// Camera rays of a 128x64 image from inside the Cornell room toward its
+/// back wall, eight per pixel in a row (a pixel's samples: coherent).
+fn camera_rays() -> Vec<Ray> {
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(3);
+    let o = Vec3A::new(0.5, 0.5, 0.02);
+    (0..RAYS)
+        .map(|i| {
+            let (px, py) = ((i / 8) % 128, (i / 8) / 128);
+            let x = (px as f32 + uniform(&mut rng)) / 128.0 - 0.5;
+            let y = (py as f32 + uniform(&mut rng)) / 64.0 - 0.5;
+            Ray::new(o, Vec3A::new(x * 1.2, y * 0.6, 1.0).normalize())
+        })
+        .collect()
+}
+
 fn build(c: &mut Criterion) {
     let tris: Vec<_> = Mesh::sphere(Vec3A::ZERO, 1.0, BIG_SUBDIVISIONS, false).triangles().collect();
     let mut g = c.benchmark_group("bvh_build");
@@ -94,6 +111,18 @@ fn traverse(c: &mut Criterion) {
                 sum
             })
         });
+        g.bench_function(BenchmarkId::new("closest8", name), |b| {
+            b.iter(|| {
+                let mut sum = 0.0f32;
+                for r in black_box(rays).chunks_exact(LANES) {
+                    let r: &[Ray; LANES] = r.try_into().unwrap();
+                    for h in accel.intersect8(r, [f32::INFINITY; LANES], 0xff).into_iter().flatten() {
+                        sum += h.t;
+                    }
+                }
+                sum
+            })
+        });
         // Shadow-ray-like: half the rays end before the first surface.
         let t_max: Vec<f32> = rays
             .iter()
@@ -104,6 +133,20 @@ fn traverse(c: &mut Criterion) {
             b.iter(|| black_box(rays).iter().zip(&t_max).filter(|(r, &t)| accel.occluded(r, t)).count())
         });
     }
+    // A pixel's camera rays, as `path` traces them: alone, and as packets.
+    let (accel, camera) = (&scenes[0].1, camera_rays());
+    g.bench_function(BenchmarkId::new("closest", "cornell_camera"), |b| {
+        b.iter(|| black_box(&camera).iter().filter_map(|r| accel.intersect(r, f32::INFINITY)).count())
+    });
+    g.bench_function(BenchmarkId::new("closest8", "cornell_camera"), |b| {
+        b.iter(|| {
+            let mut n = 0;
+            for r in black_box(&camera).chunks_exact(LANES) {
+                n += accel.intersect8(r.try_into().unwrap(), [f32::INFINITY; LANES], 0xff).iter().flatten().count();
+            }
+            n
+        })
+    });
     g.finish();
 }
 

@@ -9,6 +9,7 @@ mod simple_path;
 
 pub use bdpt::{init_mis, mis_weight, Bdpt, Subpath};
 
+use crate::accel::LANES;
 use crate::render::Workspace;
 use crate::sampling::Sampler;
 use crate::scene::Scene;
@@ -29,6 +30,20 @@ pub trait Integrator: Send + Sync {
         lambda: &mut SampledWavelengths,
         ws: &mut Workspace,
     ) -> SampledSpectrum;
+
+    /// Up to `LANES` samples of one pixel at once (`samplers[i]` and
+    /// `lambdas[i]` as `sample` takes them), for an estimator that traces
+    /// some of their rays together; it may make no splats. `None`, the
+    /// default, has the samples taken one at a time by `sample`.
+    fn sample_lanes(
+        &self,
+        _scene: &Scene,
+        _pixel: UVec2,
+        _samplers: &mut [Sampler],
+        _lambdas: &mut [SampledWavelengths],
+    ) -> Option<[SampledSpectrum; LANES]> {
+        None
+    }
 
     /// Path classes the scene contains that this estimator cannot sample, in
     /// plain words (printed as warnings before rendering).

@@ -16,6 +16,8 @@
 //! | max_depth | int  | 1024    | maximum scattering events        |
 
 use super::{russian_roulette, Integrator, IntegratorOptions};
+use crate::accel::LANES;
+use crate::geometry::Ray;
 use crate::light::Light;
 use crate::materials::{Bsdf, TransportMode};
 use crate::render::Workspace;
@@ -52,13 +54,69 @@ impl Integrator for PathTracer {
         lambda: &mut SampledWavelengths,
         _ws: &mut Workspace,
     ) -> SampledSpectrum {
-        let mut ray = scene.camera.generate_ray(pixel.as_vec2() + sampler.get2d());
+        let ray = scene.camera.generate_ray(pixel.as_vec2() + sampler.get2d());
+        let si = scene.intersect(&ray);
+        self.trace(scene, ray, si, sampler, lambda)
+    }
+
+    /// The samples' camera rays leave one pixel in nearly one direction:
+    /// they are traced together, as a packet (`Scene::intersect8`), and
+    /// each path then goes on alone; its later rays part ways, and
+    /// incoherent packets cost more than rays alone (docs/performance.md,
+    /// "Session 20"). Each lane computes what `sample` computes for its
+    /// sample (tests/lanes.rs).
+    fn sample_lanes(
+        &self,
+        scene: &Scene,
+        pixel: UVec2,
+        samplers: &mut [Sampler],
+        lambdas: &mut [SampledWavelengths],
+    ) -> Option<[SampledSpectrum; LANES]> {
+        let n = samplers.len().min(LANES);
+        let rays = std::array::from_fn(|i| match samplers.get_mut(i) {
+            Some(s) => scene.camera.generate_ray(pixel.as_vec2() + s.get2d()),
+            None => Ray::new(Vec3A::ZERO, Vec3A::ZERO),
+        });
+        let hits = scene.intersect8(&rays, (1 << n) - 1);
+        let mut l = [SampledSpectrum::ZERO; LANES];
+        for (i, (ray, si)) in rays.into_iter().zip(hits).take(n).enumerate() {
+            l[i] = self.trace(scene, ray, si, &mut samplers[i], &mut lambdas[i]);
+        }
+        Some(l)
+    }
+
+    fn unsamplable(&self, scene: &Scene) -> Vec<String> {
+        let mut warnings = crate::path::specular_chains_to_point_lights(scene);
+        // A camera path reaches a point light only by next-event estimation
+        // from a non-specular vertex: light that leaves it by a smooth
+        // specular bounce first (a caustic, L S+ D ... E) is never sampled.
+        warnings.extend(crate::path::point_lights_with_specular(scene, |name, specular| {
+            format!("path tracing cannot reach the point light \"{name}\" through the smooth specular material(s) {specular}: its caustics (light -> specular -> diffuse) are missing from the image (light and bdpt render them)")
+        }));
+        warnings.extend(crate::path::point_lights_in_view(scene).into_iter().map(|name| {
+            format!("path tracing cannot see the point light \"{name}\" directly through the pinhole: its pixel will lack the light itself (light and bdpt render it)")
+        }));
+        warnings
+    }
+}
+
+impl PathTracer {
+    /// The path from its first ray, `ray`, which found `hit`.
+    #[inline(always)]
+    fn trace(
+        &self,
+        scene: &Scene,
+        mut ray: Ray,
+        mut hit: Option<SurfaceInteraction>,
+        sampler: &mut Sampler,
+        lambda: &mut SampledWavelengths,
+    ) -> SampledSpectrum {
         let mut l = SampledSpectrum::ZERO;
         let mut beta = SampledSpectrum::ONE;
         let mut eta_scale = 1.0;
         let mut prev = PrevVertex { p: ray.o, pdf_bsdf: 0.0, specular: true };
         for depth in 0.. {
-            let Some(si) = scene.intersect(&ray) else {
+            let Some(si) = hit.take() else {
                 if let Some((i, env)) = scene.environment() {
                     let w = emitter_weight(scene, &prev, i, env, prev.p + ray.d, Vec3A::ZERO);
                     l += beta * env.environment_le(lambda) * w;
@@ -94,22 +152,9 @@ impl Integrator for PathTracer {
                 break;
             }
             ray = si.spawn_ray(si.frame.to_world(bs.wi));
+            hit = scene.intersect(&ray);
         }
         l
-    }
-
-    fn unsamplable(&self, scene: &Scene) -> Vec<String> {
-        let mut warnings = crate::path::specular_chains_to_point_lights(scene);
-        // A camera path reaches a point light only by next-event estimation
-        // from a non-specular vertex: light that leaves it by a smooth
-        // specular bounce first (a caustic, L S+ D ... E) is never sampled.
-        warnings.extend(crate::path::point_lights_with_specular(scene, |name, specular| {
-            format!("path tracing cannot reach the point light \"{name}\" through the smooth specular material(s) {specular}: its caustics (light -> specular -> diffuse) are missing from the image (light and bdpt render them)")
-        }));
-        warnings.extend(crate::path::point_lights_in_view(scene).into_iter().map(|name| {
-            format!("path tracing cannot see the point light \"{name}\" directly through the pinhole: its pixel will lack the light itself (light and bdpt render it)")
-        }));
-        warnings
     }
 }
 

@@ -26,6 +26,10 @@
 //! triangles (zero area, non-finite vertices) are left out of the BVH: they can
 //! never be hit, and a renderer could not compute their normal anyway.
 
+mod packet;
+
+pub use packet::LANES;
+
 use crate::geometry::{gamma, Ray, NO_TRIANGLE};
 use crate::wide_bvh::{self, PrimRef};
 use glam::{DVec3, Vec3A, Vec4};

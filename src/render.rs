@@ -19,6 +19,7 @@
 //! deterministic. Without it the workspace holds no record list and the
 //! integrator's check costs one branch.
 
+use crate::accel::LANES;
 use crate::film::{add_fixed, to_fixed, write_exr, DroppedSamples, Film};
 use crate::integrators::Integrator;
 use crate::sampling::Sampler;
@@ -473,18 +474,34 @@ fn render_tile(
         for x in 0..size.x {
             let pixel = origin + UVec2::new(x, y);
             let local = (y * size.x + x) as usize;
-            for s in samples.clone() {
-                let mut sampler = Sampler::new(seed, (pixel.y * width + pixel.x) as u64, s as u64);
-                let mut lambda = SampledWavelengths::sample_visible(sampler.get1d());
-                ws.splats.clear();
-                if let Some(records) = ws.strategies.as_mut() {
-                    records.clear();
+            for first in samples.clone().step_by(LANES) {
+                // Up to LANES samples at a time, each with its own stream.
+                let n = (samples.end - first).min(LANES as u32) as usize;
+                let mut samplers: [Sampler; LANES] = std::array::from_fn(|i| {
+                    Sampler::new(seed, (pixel.y * width + pixel.x) as u64, (first + i as u32) as u64)
+                });
+                let mut lambdas = samplers.each_mut().map(|s| SampledWavelengths::sample_visible(s.get1d()));
+                let lanes = match ws.strategies {
+                    None => integrator.sample_lanes(scene, pixel, &mut samplers[..n], &mut lambdas[..n]),
+                    Some(_) => None,
+                };
+                if let Some(l) = lanes {
+                    for (l, lambda) in l.iter().zip(&lambdas).take(n) {
+                        out.add_sample(local, *l, &[], &SampledCmf::linear_srgb(lambda), image);
+                    }
+                    continue;
                 }
-                let l = integrator.sample(scene, pixel, &mut sampler, &mut lambda, ws);
-                let cmf = SampledCmf::linear_srgb(&lambda);
-                out.add_sample(local, l, &ws.splats, &cmf, image);
-                if let (Some(tile), Some(records)) = (out.strategies.as_mut(), ws.strategies.as_ref()) {
-                    tile.add(records, local, (size.x * size.y) as usize, &cmf, image);
+                for (sampler, lambda) in samplers.iter_mut().zip(&mut lambdas).take(n) {
+                    ws.splats.clear();
+                    if let Some(records) = ws.strategies.as_mut() {
+                        records.clear();
+                    }
+                    let l = integrator.sample(scene, pixel, sampler, lambda, ws);
+                    let cmf = SampledCmf::linear_srgb(lambda);
+                    out.add_sample(local, l, &ws.splats, &cmf, image);
+                    if let (Some(tile), Some(records)) = (out.strategies.as_mut(), ws.strategies.as_ref()) {
+                        tile.add(records, local, (size.x * size.y) as usize, &cmf, image);
+                    }
                 }
             }
         }

@@ -10,7 +10,7 @@ mod tagged;
 pub use self::gltf::{gltf_conductor_eta_k, load_gltf, parse_gltf, GltfScene};
 pub use json::{load_scene, parse_scene, LoadError};
 
-use crate::accel::Accel;
+use crate::accel::{Accel, TriangleHit, LANES};
 use crate::camera::Camera;
 use crate::geometry::{barycentric_error, Frame, Ray, SurfacePoint, NO_TRIANGLE};
 use crate::light::{AreaLight, EnvironmentLight, Light, PointLight};
@@ -322,6 +322,21 @@ impl Scene {
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceInteraction> {
         count_ray();
         let hit = self.accel.intersect(ray, f32::INFINITY)?;
+        Some(self.interaction(ray, &hit))
+    }
+
+    /// `intersect` for the rays in the `active` lanes of a packet, traced
+    /// together (`Accel::intersect8`): for rays that start close together
+    /// towards close directions, such as a pixel's camera rays.
+    pub fn intersect8(&self, rays: &[Ray; LANES], active: u32) -> [Option<SurfaceInteraction>; LANES] {
+        RAYS.with(|c| c.set(c.get() + active.count_ones() as u64));
+        let hits = self.accel.intersect8(rays, [f32::INFINITY; LANES], active);
+        std::array::from_fn(|l| hits[l].as_ref().map(|hit| self.interaction(&rays[l], hit)))
+    }
+
+    /// The surface interaction of a ray's hit.
+    #[inline(always)]
+    fn interaction(&self, ray: &Ray, hit: &TriangleHit) -> SurfaceInteraction {
         let v = hit.v;
         let m = &self.meshes[self.mesh_of(hit.slot, hit.prim)];
         let k = (hit.prim - m.start) as usize;
@@ -344,7 +359,7 @@ impl Scene {
             }
             None => ng,
         };
-        Some(SurfaceInteraction {
+        SurfaceInteraction {
             p,
             p_error: barycentric_error(&v, b0, hit.b1, hit.b2),
             t: hit.t,
@@ -354,7 +369,7 @@ impl Scene {
             material: m.material,
             light: m.lights.get(k).copied().filter(|&l| l != NO_LIGHT),
             slot: hit.slot,
-        })
+        }
     }
 
     /// The index in `meshes` of the mesh holding triangle `prim`, which is
