@@ -76,7 +76,7 @@ impl Integrator for Bdpt {
         ws: &mut Workspace,
     ) -> SampledSpectrum {
         let raster = pixel.as_vec2() + sampler.get2d();
-        let Workspace { splats, paths, strategies } = ws;
+        let Workspace { splats, paths, strategies, .. } = ws;
         camera_subpath(scene, raster, sampler, lambda, self.max_depth, &mut paths.camera);
         light_subpath::<true>(scene, sampler, lambda, self.max_depth, &mut paths.light);
         init_mis(scene, &mut paths.camera, Subpath::Camera, self.mis);

@@ -26,11 +26,12 @@
 //! triangles (zero area, non-finite vertices) are left out of the BVH: they can
 //! never be hit, and a renderer could not compute their normal anyway.
 
+mod lanes;
 mod packet;
 
 pub use packet::LANES;
 
-use crate::geometry::{gamma, Ray, NO_TRIANGLE};
+use crate::geometry::{Ray, NO_TRIANGLE};
 use crate::wide_bvh::{self, PrimRef};
 use glam::{DVec3, Vec3A, Vec4};
 use obvhs::{
@@ -565,13 +566,8 @@ impl PreparedRay {
         })
     }
 
-    /// Woop, Benthin & Wald 2013, fig. 2/3 (no backface culling), on the
-    /// four triangles of a block at once, one per lane, for the lanes set in
-    /// `lanes`. Every triangle sharing a vertex computes the same sheared
-    /// coordinates for it, and the edge function of a shared edge in the
-    /// neighbour is the exact negation of ours (x1 y2 - y1 x2 vs
-    /// y1 x2 - x1 y2, products commute exactly), so a ray on the edge cannot
-    /// miss both.
+    /// The watertight test (`lanes::watertight`) on the four triangles of a
+    /// block at once, one per lane, for the lanes set in `lanes`.
     ///
     /// The hits are met from the highest lane down, as a loop over the
     /// slots one triangle at a time would meet them: each shortens `t_max`,
@@ -593,47 +589,10 @@ impl PreparedRay {
         let sheared = |k, o: f32, s: Vec4, j: usize| (block.row(k, j) - splat(o)) - s * z[j];
         let x = [sheared(kx, self.o_k.x, sx, 0), sheared(kx, self.o_k.x, sx, 1), sheared(kx, self.o_k.x, sx, 2)];
         let y = [sheared(ky, self.o_k.y, sy, 0), sheared(ky, self.o_k.y, sy, 1), sheared(ky, self.o_k.y, sy, 2)];
-        // The edge functions (U, V, W) = (cx by - cy bx, ax cy - ay cx,
-        // bx ay - by ax) of vertices (a, b, c).
-        let mut e = [x[2] * y[1] - y[2] * x[1], x[0] * y[2] - y[0] * x[2], x[1] * y[0] - y[1] * x[0]];
-        // Exactly zero means the ray is (in f32) on an edge; the f32 products
-        // are exact in f64, so recomputing there gets the true sign (sec. 3.3).
-        let zero = (e[0].cmpeq(Vec4::ZERO) | e[1].cmpeq(Vec4::ZERO) | e[2].cmpeq(Vec4::ZERO)).bitmask() & lanes;
-        if zero != 0 {
-            e = edges_in_f64(x, y, e, zero);
-        }
-        // Outside unless the signs agree (zeros aside). A block with no lane
-        // inside, most blocks a shadow ray meets, stops here.
-        let neg = e[0].cmplt(Vec4::ZERO) | e[1].cmplt(Vec4::ZERO) | e[2].cmplt(Vec4::ZERO);
-        let pos = e[0].cmpgt(Vec4::ZERO) | e[1].cmpgt(Vec4::ZERO) | e[2].cmpgt(Vec4::ZERO);
-        let inside = !(neg & pos).bitmask() & lanes;
-        if inside == 0 {
-            return None;
-        }
-        let det = (e[0] + e[1]) + e[2];
-        let t_scaled = (e[0] * (z[0] * sz) + e[1] * (z[1] * sz)) + e[2] * (z[2] * sz);
-        // Range test on t = t_scaled / det before dividing (sec. 3.4), with
-        // the sign of det folded in (the paper's xorf; for det = -0 or a
-        // negative NaN the two differ, and the lane fails either way);
-        // written so that NaN fails. It also rejects det = 0, which the
-        // one-triangle form tested apart: 0 < ts < t_max * 0 cannot hold
-        // (and t_max * 0 is NaN for an infinite t_max).
-        let (ts, ds) = (Vec4::select(det.cmplt(Vec4::ZERO), -t_scaled, t_scaled), det.abs());
-        let in_range = ts.cmpgt(Vec4::ZERO) & ts.cmplt(splat(*t_max) * ds);
-        let mut candidates = in_range.bitmask() & inside;
-        if candidates == 0 {
-            return None;
-        }
-        let rcp = Vec4::ONE / det;
-        let t = t_scaled * rcp;
-        // The division can round up to t_max. And t itself carries rounding
-        // error: accept it only when conservatively positive, t > delta_t
-        // (pbrt-v4 section 6.8.7, the bounds of its `IntersectTriangle`), so
-        // a ray leaving a surface never re-hits it at t ~ 0 whatever the
-        // scene's scale (see `offset_ray_origin`).
-        candidates &= t.cmpgt(Self::delta_t(&x, &y, &z, sz, &e, rcp)).bitmask();
-        let (t, ts, ds) = (t.to_array(), ts.to_array(), ds.to_array());
-        let (b1, b2) = ((e[1] * rcp).to_array(), (e[2] * rcp).to_array());
+        let c = lanes::watertight(x, y, z, splat(sz), splat(*t_max), lanes)?;
+        let mut candidates = c.mask;
+        let (t, ts, ds) = (c.t.to_array(), c.ts.to_array(), c.ds.to_array());
+        let (b1, b2) = (c.b1.to_array(), c.b2.to_array());
         let mut hit = None;
         while candidates != 0 {
             let lane = 31 - candidates.leading_zeros();
@@ -646,42 +605,6 @@ impl PreparedRay {
         }
         hit
     }
-
-    /// Bound on the rounding error of t, per lane, from the sheared vertex
-    /// coordinates `x`, `y`, the unscaled `z` with its scale `sz`, the edge
-    /// functions `e` and 1 / det. As pbrt-v4's, except that the shear's
-    /// error follows the unscaled z the shear multiplies (pbrt uses the
-    /// scaled z there, which is loose for short directions and not
-    /// conservative for long ones).
-    #[inline(always)]
-    fn delta_t(x: &[Vec4; 3], y: &[Vec4; 3], z: &[Vec4; 3], sz: f32, e: &[Vec4; 3], rcp: Vec4) -> Vec4 {
-        // (The one-triangle form took the max over (a, c), then b: the same
-        // but for a NaN, and a NaN in x or y makes det NaN, failing the lane.)
-        let max_abs = |v: &[Vec4; 3]| v[0].abs().max(v[1].abs()).max(v[2].abs());
-        let (max_x, max_y, max_z, max_e) = (max_abs(x), max_abs(y), max_abs(z), max_abs(e));
-        let g = |n: u32| Vec4::splat(gamma(n));
-        let max_zs = max_z * sz.abs();
-        let delta_zs = g(3) * max_zs;
-        let delta_x = g(5) * (max_x + max_z);
-        let delta_y = g(5) * (max_y + max_z);
-        let delta_e = 2.0 * (g(2) * max_x * max_y + delta_y * max_x + delta_x * max_y);
-        3.0 * (g(3) * max_e * max_zs + delta_e * max_zs + delta_zs * max_e) * rcp.abs()
-    }
-}
-
-/// The edge functions `e` with those of the lanes in `redo` recomputed in
-/// f64 from the sheared coordinates (all three of a lane, as one f32
-/// product pair each, exact in f64, then rounded once).
-#[cold]
-#[inline(never)]
-fn edges_in_f64(x: [Vec4; 3], y: [Vec4; 3], e: [Vec4; 3], redo: u32) -> [Vec4; 3] {
-    let mut e = [e[0].to_array(), e[1].to_array(), e[2].to_array()];
-    let f = |v: Vec4, l: usize| v.to_array()[l] as f64;
-    for l in (0..4).filter(|l| redo >> l & 1 != 0) {
-        let edge = |a: usize, b: usize| (f(x[a], l) * f(y[b], l) - f(y[a], l) * f(x[b], l)) as f32;
-        (e[0][l], e[1][l], e[2][l]) = (edge(2, 1), edge(0, 2), edge(1, 0));
-    }
-    [Vec4::from_array(e[0]), Vec4::from_array(e[1]), Vec4::from_array(e[2])]
 }
 
 /// 2^-20: slab t values below carry at most ~4 roundings of 2^-24 relative to
@@ -889,7 +812,7 @@ mod tests {
     }
 
     /// Uniform numbers in [0, 1) from a xorshift generator.
-    fn uniform(mut seed: u64) -> impl FnMut() -> f32 {
+    pub(super) fn uniform(mut seed: u64) -> impl FnMut() -> f32 {
         move || {
             seed ^= seed << 13;
             seed ^= seed >> 7;

@@ -56,6 +56,10 @@ pub struct Workspace {
     /// Per-strategy records of the current sample; `Some` only when
     /// per-strategy images are being made (`render_with_strategies`).
     pub strategies: Option<Vec<StrategyRecord>>,
+    /// The random streams and wavelengths of the samples being taken
+    /// together (`Integrator::sample_lanes`).
+    pub samplers: Vec<Sampler>,
+    pub lambdas: Vec<SampledWavelengths>,
 }
 
 /// One connection strategy's contribution to a sample of a bidirectional
@@ -475,34 +479,32 @@ fn render_tile(
             let pixel = origin + UVec2::new(x, y);
             let local = (y * size.x + x) as usize;
             for first in samples.clone().step_by(LANES) {
-                // Up to LANES samples at a time, each with its own stream.
-                let n = (samples.end - first).min(LANES as u32) as usize;
-                let mut samplers: [Sampler; LANES] = std::array::from_fn(|i| {
-                    Sampler::new(seed, (pixel.y * width + pixel.x) as u64, (first + i as u32) as u64)
-                });
-                let mut lambdas = samplers.each_mut().map(|s| SampledWavelengths::sample_visible(s.get1d()));
+                // Up to LANES samples at a time, each with its own stream
+                // (the vectors are the worker's, taken out while in use).
+                let last = (first + LANES as u32).min(samples.end);
+                let stream = (pixel.y * width + pixel.x) as u64;
+                let (mut samplers, mut lambdas) = (std::mem::take(&mut ws.samplers), std::mem::take(&mut ws.lambdas));
+                samplers.clear();
+                samplers.extend((first..last).map(|s| Sampler::new(seed, stream, s as u64)));
+                lambdas.clear();
+                lambdas.extend(samplers.iter_mut().map(|s| SampledWavelengths::sample_visible(s.get1d())));
                 let lanes = match ws.strategies {
-                    None => integrator.sample_lanes(scene, pixel, &mut samplers[..n], &mut lambdas[..n]),
+                    None => integrator.sample_lanes(scene, pixel, &mut samplers, &mut lambdas),
                     Some(_) => None,
                 };
-                if let Some(l) = lanes {
-                    for (l, lambda) in l.iter().zip(&lambdas).take(n) {
-                        out.add_sample(local, *l, &[], &SampledCmf::linear_srgb(lambda), image);
+                match lanes {
+                    Some(l) => {
+                        for (l, lambda) in l.iter().zip(&lambdas) {
+                            out.add_sample(local, *l, &[], &SampledCmf::linear_srgb(lambda), image);
+                        }
                     }
-                    continue;
-                }
-                for (sampler, lambda) in samplers.iter_mut().zip(&mut lambdas).take(n) {
-                    ws.splats.clear();
-                    if let Some(records) = ws.strategies.as_mut() {
-                        records.clear();
-                    }
-                    let l = integrator.sample(scene, pixel, sampler, lambda, ws);
-                    let cmf = SampledCmf::linear_srgb(lambda);
-                    out.add_sample(local, l, &ws.splats, &cmf, image);
-                    if let (Some(tile), Some(records)) = (out.strategies.as_mut(), ws.strategies.as_ref()) {
-                        tile.add(records, local, (size.x * size.y) as usize, &cmf, image);
+                    None => {
+                        for (sampler, lambda) in samplers.iter_mut().zip(&mut lambdas) {
+                            out.add_one(scene, integrator, ws, pixel, local, sampler, lambda, image);
+                        }
                     }
                 }
+                (ws.samplers, ws.lambdas) = (samplers, lambdas);
             }
         }
     }
@@ -518,6 +520,33 @@ fn splat_pixel(raster: Vec2, image: UVec2) -> u32 {
 }
 
 impl TileOutput {
+    /// One sample taken alone (`Integrator::sample`), with its splats and
+    /// strategy records.
+    #[allow(clippy::too_many_arguments)]
+    fn add_one(
+        &mut self,
+        scene: &Scene,
+        integrator: &dyn Integrator,
+        ws: &mut Workspace,
+        pixel: UVec2,
+        local: usize,
+        sampler: &mut Sampler,
+        lambda: &mut SampledWavelengths,
+        image: UVec2,
+    ) {
+        ws.splats.clear();
+        if let Some(records) = ws.strategies.as_mut() {
+            records.clear();
+        }
+        let l = integrator.sample(scene, pixel, sampler, lambda, ws);
+        let cmf = SampledCmf::linear_srgb(lambda);
+        self.add_sample(local, l, &ws.splats, &cmf, image);
+        let n = self.sums.len();
+        if let (Some(tile), Some(records)) = (self.strategies.as_mut(), ws.strategies.as_ref()) {
+            tile.add(records, local, n, &cmf, image);
+        }
+    }
+
     /// One camera sample of the tile's pixel `local` (value `l`) and the
     /// splats it made, converted to colour with the matching functions at
     /// the sample's final wavelengths; what the film cannot take is counted,

@@ -19,8 +19,9 @@
 //! as fast as the lanes), so `path` traces its camera rays this way and
 //! nothing else does.
 
+use super::lanes::watertight;
 use super::{Accel, GroupStack, SLACK};
-use crate::geometry::{gamma, Ray};
+use crate::geometry::Ray;
 use obvhs::cwbvh::node::CwBvhNode;
 use wide::{f32x8, i32x8};
 
@@ -244,10 +245,9 @@ impl Hits {
 }
 
 impl PreparedPacket {
-    /// The watertight test (Woop et al. 2013) of the triangle in `slot`
-    /// against the rays of `lanes`, as `PreparedRay::intersect_block` does
-    /// for one ray: lane by lane the same operations in the same order.
-    /// Returns the lanes whose best hit it became.
+    /// The watertight test (`lanes::watertight`) of the triangle in `slot`
+    /// against the rays of `lanes`, each lane with its own axis
+    /// permutation; returns the lanes whose best hit it became.
     #[inline(always)]
     fn intersect_triangle(&self, accel: &Accel, slot: u32, lanes: u32, hits: &mut Hits) -> u32 {
         let v = accel.vertices(slot);
@@ -260,37 +260,17 @@ impl PreparedPacket {
         let z = [0, 1, 2].map(|j| pick(2, j) - self.o_k[2]);
         let x = [0, 1, 2].map(|j| (pick(0, j) - self.o_k[0]) - sx * z[j]);
         let y = [0, 1, 2].map(|j| (pick(1, j) - self.o_k[1]) - sy * z[j]);
-        let mut e = [x[2] * y[1] - y[2] * x[1], x[0] * y[2] - y[0] * x[2], x[1] * y[0] - y[1] * x[0]];
-        let zero =
-            (e[0].simd_eq(f32x8::ZERO) | e[1].simd_eq(f32x8::ZERO) | e[2].simd_eq(f32x8::ZERO)).to_bitmask() & lanes;
-        if zero != 0 {
-            e = edges_in_f64(&x, &y, e, zero);
-        }
-        let neg = e[0].simd_lt(f32x8::ZERO) | e[1].simd_lt(f32x8::ZERO) | e[2].simd_lt(f32x8::ZERO);
-        let pos = e[0].simd_gt(f32x8::ZERO) | e[1].simd_gt(f32x8::ZERO) | e[2].simd_gt(f32x8::ZERO);
-        let inside = !(neg & pos).to_bitmask() & lanes;
-        if inside == 0 {
+        let Some(c) = watertight(x, y, z, sz, hits.t, lanes) else {
             return 0;
-        }
-        let det = (e[0] + e[1]) + e[2];
-        let t_scaled = (e[0] * (z[0] * sz) + e[1] * (z[1] * sz)) + e[2] * (z[2] * sz);
-        let (ts, ds) = (det.simd_lt(f32x8::ZERO).select(-t_scaled, t_scaled), det.abs());
-        let in_range = ts.simd_gt(f32x8::ZERO) & ts.simd_lt(hits.t * ds);
-        let candidates = in_range.to_bitmask() & inside;
-        if candidates == 0 {
-            return 0;
-        }
-        let rcp = f32x8::ONE / det;
-        let t = t_scaled * rcp;
-        let accept = t.simd_gt(delta_t(&x, &y, &z, sz, &e, rcp)) & t.simd_lt(hits.t);
-        let won = accept.to_bitmask() & candidates;
+        };
+        let won = c.t.simd_lt(hits.t).to_bitmask() & c.mask;
         if won == 0 {
             return 0;
         }
         let m = f32x8::new(std::array::from_fn(|l| f32::from_bits(0u32.wrapping_sub(won >> l & 1))));
-        hits.t = m.select(t, hits.t);
-        hits.b1 = m.select(e[1] * rcp, hits.b1);
-        hits.b2 = m.select(e[2] * rcp, hits.b2);
+        hits.t = m.select(c.t, hits.t);
+        hits.b1 = m.select(c.b1, hits.b1);
+        hits.b2 = m.select(c.b2, hits.b2);
         let mi: i32x8 = bytemuck_cast(m);
         hits.slot = mi.select(i32x8::splat(slot as i32), hits.slot);
         won
@@ -302,48 +282,12 @@ fn bytemuck_cast(m: f32x8) -> i32x8 {
     i32x8::new(m.to_array().map(|f| f.to_bits() as i32))
 }
 
-/// `PreparedRay::delta_t`, lane by lane.
-#[inline(always)]
-fn delta_t(x: &[f32x8; 3], y: &[f32x8; 3], z: &[f32x8; 3], sz: f32x8, e: &[f32x8; 3], rcp: f32x8) -> f32x8 {
-    let max_abs = |v: &[f32x8; 3]| v[0].abs().fast_max(v[1].abs()).fast_max(v[2].abs());
-    let (max_x, max_y, max_z, max_e) = (max_abs(x), max_abs(y), max_abs(z), max_abs(e));
-    let g = |n: u32| f32x8::splat(gamma(n));
-    let max_zs = max_z * sz.abs();
-    let delta_zs = g(3) * max_zs;
-    let delta_x = g(5) * (max_x + max_z);
-    let delta_y = g(5) * (max_y + max_z);
-    let delta_e = f32x8::splat(2.0) * (g(2) * max_x * max_y + delta_y * max_x + delta_x * max_y);
-    f32x8::splat(3.0) * (g(3) * max_e * max_zs + delta_e * max_zs + delta_zs * max_e) * rcp.abs()
-}
-
-/// `edges_in_f64` for the lanes in `redo`.
-#[cold]
-#[inline(never)]
-fn edges_in_f64(x: &[f32x8; 3], y: &[f32x8; 3], e: [f32x8; 3], redo: u32) -> [f32x8; 3] {
-    let mut e = e.map(|v| v.to_array());
-    let (x, y) = (x.map(|v| v.to_array()), y.map(|v| v.to_array()));
-    for l in (0..LANES).filter(|l| redo >> l & 1 != 0) {
-        let edge = |a: usize, b: usize| (x[a][l] as f64 * y[b][l] as f64 - y[a][l] as f64 * x[b][l] as f64) as f32;
-        (e[0][l], e[1][l], e[2][l]) = (edge(2, 1), edge(0, 2), edge(1, 0));
-    }
-    e.map(f32x8::new)
-}
-
 #[cfg(test)]
 mod tests {
+    use super::super::tests::uniform;
     use super::*;
     use crate::shapes::Mesh;
     use glam::{Affine3A, Vec3, Vec3A};
-
-    /// Uniform numbers in [0, 1) from a xorshift generator.
-    fn uniform(mut seed: u64) -> impl FnMut() -> f32 {
-        move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 40) as f32 / (1u64 << 24) as f32
-        }
-    }
 
     /// A closed room with two rotated boxes and a 642-vertex sphere.
     fn scene() -> Vec<[Vec3A; 3]> {

@@ -1,0 +1,234 @@
+//! The watertight ray/triangle test (Woop, Benthin & Wald 2013) once, on
+//! SIMD lanes of either kind the traversals use: four triangles of one ray
+//! (`Vec4`, `PreparedRay::intersect_block`) or one triangle of eight rays
+//! (`f32x8`, the packets of `packet.rs`). Both get each lane's result from
+//! the same operations in the same order, so a ray finds the same hits
+//! either way.
+
+use crate::geometry::gamma;
+use glam::Vec4;
+use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Sub};
+use wide::f32x8;
+
+/// A vector of f32 lanes with the operations of the watertight test.
+pub(super) trait Lanes:
+    Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Div<Output = Self> + Neg<Output = Self>
+{
+    /// A comparison's result, lane by lane.
+    type Mask: Copy + BitOr<Output = Self::Mask> + BitAnd<Output = Self::Mask>;
+    const ZERO: Self;
+    const LANES: usize;
+    fn splat(v: f32) -> Self;
+    fn abs(self) -> Self;
+    /// The hardware max (the second operand where either is NaN).
+    fn max(self, other: Self) -> Self;
+    fn eq(self, other: Self) -> Self::Mask;
+    fn lt(self, other: Self) -> Self::Mask;
+    fn gt(self, other: Self) -> Self::Mask;
+    fn select(mask: Self::Mask, if_true: Self, if_false: Self) -> Self;
+    fn bitmask(mask: Self::Mask) -> u32;
+    fn lane(self, l: usize) -> f32;
+    fn set_lane(&mut self, l: usize, v: f32);
+}
+
+impl Lanes for Vec4 {
+    type Mask = glam::BVec4A;
+    const ZERO: Self = Vec4::ZERO;
+    const LANES: usize = 4;
+    #[inline(always)]
+    fn splat(v: f32) -> Self {
+        Vec4::splat(v)
+    }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        Vec4::abs(self)
+    }
+    #[inline(always)]
+    fn max(self, other: Self) -> Self {
+        Vec4::max(self, other)
+    }
+    #[inline(always)]
+    fn eq(self, other: Self) -> Self::Mask {
+        self.cmpeq(other)
+    }
+    #[inline(always)]
+    fn lt(self, other: Self) -> Self::Mask {
+        self.cmplt(other)
+    }
+    #[inline(always)]
+    fn gt(self, other: Self) -> Self::Mask {
+        self.cmpgt(other)
+    }
+    #[inline(always)]
+    fn select(mask: Self::Mask, if_true: Self, if_false: Self) -> Self {
+        Vec4::select(mask, if_true, if_false)
+    }
+    #[inline(always)]
+    fn bitmask(mask: Self::Mask) -> u32 {
+        mask.bitmask()
+    }
+    #[inline(always)]
+    fn lane(self, l: usize) -> f32 {
+        self[l]
+    }
+    #[inline(always)]
+    fn set_lane(&mut self, l: usize, v: f32) {
+        self[l] = v;
+    }
+}
+
+impl Lanes for f32x8 {
+    type Mask = f32x8;
+    const ZERO: Self = f32x8::ZERO;
+    const LANES: usize = 8;
+    #[inline(always)]
+    fn splat(v: f32) -> Self {
+        f32x8::splat(v)
+    }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        f32x8::abs(self)
+    }
+    #[inline(always)]
+    fn max(self, other: Self) -> Self {
+        self.fast_max(other)
+    }
+    #[inline(always)]
+    fn eq(self, other: Self) -> Self::Mask {
+        self.simd_eq(other)
+    }
+    #[inline(always)]
+    fn lt(self, other: Self) -> Self::Mask {
+        self.simd_lt(other)
+    }
+    #[inline(always)]
+    fn gt(self, other: Self) -> Self::Mask {
+        self.simd_gt(other)
+    }
+    #[inline(always)]
+    fn select(mask: Self::Mask, if_true: Self, if_false: Self) -> Self {
+        mask.select(if_true, if_false)
+    }
+    #[inline(always)]
+    fn bitmask(mask: Self::Mask) -> u32 {
+        mask.to_bitmask()
+    }
+    #[inline(always)]
+    fn lane(self, l: usize) -> f32 {
+        self.to_array()[l]
+    }
+    #[inline(always)]
+    fn set_lane(&mut self, l: usize, v: f32) {
+        let mut a = self.to_array();
+        a[l] = v;
+        *self = f32x8::new(a);
+    }
+}
+
+/// The lanes that pass the watertight test, with their distances and the
+/// barycentrics of the second and third vertices. `ts` and `ds` are t
+/// before the division, signed by det, and |det|: a caller whose t_max
+/// shrank since the test can check a lane again (`ts < t_max ds`).
+pub(super) struct Candidates<L> {
+    pub mask: u32,
+    pub t: L,
+    pub b1: L,
+    pub b2: L,
+    pub ts: L,
+    pub ds: L,
+}
+
+/// Woop, Benthin & Wald 2013, fig. 2/3 (no backface culling), lane by
+/// lane, from the vertices' coordinates relative to the ray origin, permuted
+/// and sheared (`x`, `y`; `z` unscaled, with its scale `sz`), for the lanes
+/// set in `lanes` and distances in (0, `t_max`). Every triangle sharing a
+/// vertex computes the same sheared coordinates for it, and the edge
+/// function of a shared edge in the neighbour is the exact negation of ours
+/// (x1 y2 - y1 x2 vs y1 x2 - x1 y2, products commute exactly), so a ray on
+/// the edge cannot miss both.
+#[inline(always)]
+pub(super) fn watertight<L: Lanes>(
+    x: [L; 3],
+    y: [L; 3],
+    z: [L; 3],
+    sz: L,
+    t_max: L,
+    lanes: u32,
+) -> Option<Candidates<L>> {
+    // The edge functions (U, V, W) = (cx by - cy bx, ax cy - ay cx,
+    // bx ay - by ax) of vertices (a, b, c).
+    let mut e = [x[2] * y[1] - y[2] * x[1], x[0] * y[2] - y[0] * x[2], x[1] * y[0] - y[1] * x[0]];
+    // Exactly zero means the ray is (in f32) on an edge; the f32 products
+    // are exact in f64, so recomputing there gets the true sign (sec. 3.3).
+    let zero = L::bitmask(e[0].eq(L::ZERO) | e[1].eq(L::ZERO) | e[2].eq(L::ZERO)) & lanes;
+    if zero != 0 {
+        e = edges_in_f64(&x, &y, e, zero);
+    }
+    // Outside unless the signs agree (zeros aside). A triangle no lane is
+    // inside, what most tests meet, stops here.
+    let neg = e[0].lt(L::ZERO) | e[1].lt(L::ZERO) | e[2].lt(L::ZERO);
+    let pos = e[0].gt(L::ZERO) | e[1].gt(L::ZERO) | e[2].gt(L::ZERO);
+    let inside = !L::bitmask(neg & pos) & lanes;
+    if inside == 0 {
+        return None;
+    }
+    let det = (e[0] + e[1]) + e[2];
+    let t_scaled = (e[0] * (z[0] * sz) + e[1] * (z[1] * sz)) + e[2] * (z[2] * sz);
+    // Range test on t = t_scaled / det before dividing (sec. 3.4), with
+    // the sign of det folded in (the paper's xorf; for det = -0 or a
+    // negative NaN the two differ, and the lane fails either way); written
+    // so that NaN fails. It also rejects det = 0: 0 < ts < t_max * 0 cannot
+    // hold (and t_max * 0 is NaN for an infinite t_max).
+    let (ts, ds) = (L::select(det.lt(L::ZERO), -t_scaled, t_scaled), det.abs());
+    let mut mask = L::bitmask(ts.gt(L::ZERO) & ts.lt(t_max * ds)) & inside;
+    if mask == 0 {
+        return None;
+    }
+    let rcp = L::splat(1.0) / det;
+    let t = t_scaled * rcp;
+    // The division can round up to t_max. And t itself carries rounding
+    // error: accept it only when conservatively positive, t > delta_t
+    // (pbrt-v4 section 6.8.7, the bounds of its `IntersectTriangle`), so a
+    // ray leaving a surface never re-hits it at t ~ 0 whatever the scene's
+    // scale (see `offset_ray_origin`).
+    mask &= L::bitmask(t.gt(delta_t(&x, &y, &z, sz, &e, rcp)));
+    Some(Candidates { mask, t, b1: e[1] * rcp, b2: e[2] * rcp, ts, ds })
+}
+
+/// Bound on the rounding error of t, per lane, from the sheared vertex
+/// coordinates `x`, `y`, the unscaled `z` with its scale `sz`, the edge
+/// functions `e` and 1 / det. As pbrt-v4's, except that the shear's error
+/// follows the unscaled z the shear multiplies (pbrt uses the scaled z
+/// there, which is loose for short directions and not conservative for
+/// long ones).
+#[inline(always)]
+fn delta_t<L: Lanes>(x: &[L; 3], y: &[L; 3], z: &[L; 3], sz: L, e: &[L; 3], rcp: L) -> L {
+    // (The one-triangle form took the max over (a, c), then b: the same but
+    // for a NaN, and a NaN in x or y makes det NaN, failing the lane.)
+    let max_abs = |v: &[L; 3]| v[0].abs().max(v[1].abs()).max(v[2].abs());
+    let (max_x, max_y, max_z, max_e) = (max_abs(x), max_abs(y), max_abs(z), max_abs(e));
+    let g = |n: u32| L::splat(gamma(n));
+    let max_zs = max_z * sz.abs();
+    let delta_zs = g(3) * max_zs;
+    let delta_x = g(5) * (max_x + max_z);
+    let delta_y = g(5) * (max_y + max_z);
+    let delta_e = L::splat(2.0) * (g(2) * max_x * max_y + delta_y * max_x + delta_x * max_y);
+    L::splat(3.0) * (g(3) * max_e * max_zs + delta_e * max_zs + delta_zs * max_e) * rcp.abs()
+}
+
+/// The edge functions `e` with those of the lanes in `redo` recomputed in
+/// f64 from the sheared coordinates (all three of a lane, as one f32
+/// product pair each, exact in f64, then rounded once).
+#[cold]
+#[inline(never)]
+fn edges_in_f64<L: Lanes>(x: &[L; 3], y: &[L; 3], mut e: [L; 3], redo: u32) -> [L; 3] {
+    for l in (0..L::LANES).filter(|l| redo >> l & 1 != 0) {
+        let f = |v: L| v.lane(l) as f64;
+        let edge = |a: usize, b: usize| (f(x[a]) * f(y[b]) - f(y[a]) * f(x[b])) as f32;
+        let (u, v, w) = (edge(2, 1), edge(0, 2), edge(1, 0));
+        e[0].set_lane(l, u);
+        e[1].set_lane(l, v);
+        e[2].set_lane(l, w);
+    }
+    e
+}
