@@ -8,9 +8,12 @@
 //!
 //! - Primitive: the watertight ray/triangle test of Woop, Benthin & Wald 2013,
 //!   "Watertight Ray/Triangle Intersection" (JCGT 2(1)), with its
-//!   double-precision fallback, on four triangles at once (one per SIMD
-//!   lane, `TriangleBlock`). A ray through a shared edge or vertex hits at
-//!   least one of the triangles that share it, whatever the rounding.
+//!   double-precision fallback (`lanes::watertight`), on four triangles at
+//!   once (one per SIMD lane, `TriangleBlock`). A ray through a shared edge
+//!   or vertex hits at least one of the triangles that share it, whatever
+//!   the rounding.
+//! - Packets: eight coherent rays at once (`packet.rs`, `intersect8`), each
+//!   lane finding what its ray finds alone.
 //! - Node: obvhs's own child-box test clamps t_near to an absolute 1e-4 (culling
 //!   every hit closer than that: a real loss in a millimetre-scale scene) and
 //!   has no allowance for rounding, so a ray grazing a box face or edge (an
