@@ -31,7 +31,7 @@ pub trait Integrator: Send + Sync {
         ws: &mut Workspace,
     ) -> SampledSpectrum;
 
-    /// Up to `LANES` samples of one pixel at once (`samplers[i]` and
+    /// Two to `LANES` samples of one pixel at once (`samplers[i]` and
     /// `lambdas[i]` as `sample` takes them), for an estimator that traces
     /// some of their rays together; it may make no splats. `None`, the
     /// default, has the samples taken one at a time by `sample`.

@@ -488,9 +488,10 @@ fn render_tile(
                 samplers.extend((first..last).map(|s| Sampler::new(seed, stream, s as u64)));
                 lambdas.clear();
                 lambdas.extend(samplers.iter_mut().map(|s| SampledWavelengths::sample_visible(s.get1d())));
+                // (A lone sample goes alone: a packet of one costs more.)
                 let lanes = match ws.strategies {
-                    None => integrator.sample_lanes(scene, pixel, &mut samplers, &mut lambdas),
-                    Some(_) => None,
+                    None if samplers.len() > 1 => integrator.sample_lanes(scene, pixel, &mut samplers, &mut lambdas),
+                    _ => None,
                 };
                 match lanes {
                     Some(l) => {
