@@ -267,19 +267,15 @@ impl PreparedPacket {
         if won == 0 {
             return 0;
         }
-        let m = f32x8::new(std::array::from_fn(|l| f32::from_bits(0u32.wrapping_sub(won >> l & 1))));
+        // All ones in the lanes it won, as floats and as integers.
+        let ones: [u32; LANES] = std::array::from_fn(|l| 0u32.wrapping_sub(won >> l & 1));
+        let m = f32x8::new(ones.map(f32::from_bits));
         hits.t = m.select(c.t, hits.t);
         hits.b1 = m.select(c.b1, hits.b1);
         hits.b2 = m.select(c.b2, hits.b2);
-        let mi: i32x8 = bytemuck_cast(m);
-        hits.slot = mi.select(i32x8::splat(slot as i32), hits.slot);
+        hits.slot = i32x8::new(ones.map(|b| b as i32)).select(i32x8::splat(slot as i32), hits.slot);
         won
     }
-}
-
-#[inline(always)]
-fn bytemuck_cast(m: f32x8) -> i32x8 {
-    i32x8::new(m.to_array().map(|f| f.to_bits() as i32))
 }
 
 #[cfg(test)]
