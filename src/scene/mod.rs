@@ -27,8 +27,8 @@ thread_local! {
 }
 
 #[inline]
-fn count_ray() {
-    RAYS.with(|c| c.set(c.get() + 1));
+fn count_rays(n: u32) {
+    RAYS.with(|c| c.set(c.get() + n as u64));
 }
 
 /// Returns and resets the number of rays this thread has traced.
@@ -320,7 +320,7 @@ impl Scene {
     /// "Session 16").
     #[inline(always)]
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceInteraction> {
-        count_ray();
+        count_rays(1);
         let hit = self.accel.intersect(ray, f32::INFINITY)?;
         Some(self.interaction(ray, &hit))
     }
@@ -329,7 +329,7 @@ impl Scene {
     /// together (`Accel::intersect8`): for rays that start close together
     /// towards close directions, such as a pixel's camera rays.
     pub fn intersect8(&self, rays: &[Ray; LANES], active: u32) -> [Option<SurfaceInteraction>; LANES] {
-        RAYS.with(|c| c.set(c.get() + active.count_ones() as u64));
+        count_rays(active.count_ones());
         let hits = self.accel.intersect8(rays, [f32::INFINITY; LANES], active);
         std::array::from_fn(|l| hits[l].as_ref().map(|hit| self.interaction(&rays[l], hit)))
     }
@@ -392,7 +392,7 @@ impl Scene {
         let o = a.spawn_origin(d);
         let target = b.spawn_origin(-d);
         let ray = Ray { o, d: target - o, skip: [a.slot, b.slot] };
-        count_ray();
+        count_rays(1);
         // pbrt-v4's ShadowEpsilon: stop just short of the far end.
         !self.accel.occluded(&ray, 1.0 - 1e-4)
     }
@@ -401,7 +401,7 @@ impl Scene {
     #[inline]
     pub fn escapes(&self, a: SurfacePoint, w: Vec3A) -> bool {
         let ray = a.spawn_ray(w);
-        count_ray();
+        count_rays(1);
         !self.accel.occluded(&ray, f32::INFINITY)
     }
 
