@@ -72,6 +72,7 @@ impl Integrator for PathTracer {
         samplers: &mut [Sampler],
         lambdas: &mut [SampledWavelengths],
     ) -> Option<[SampledSpectrum; LANES]> {
+        debug_assert!(samplers.len() <= LANES, "{} samples for {LANES} lanes", samplers.len());
         let n = samplers.len().min(LANES);
         let rays = std::array::from_fn(|i| match samplers.get_mut(i) {
             Some(s) => scene.camera.generate_ray(pixel.as_vec2() + s.get2d()),

@@ -58,9 +58,9 @@ impl PreparedPacket {
     /// `PreparedRay::new` in every lane at once, with the same operations
     /// in the same order (so the same constants, bit for bit).
     fn new(accel: &Accel, rays: &[Ray; LANES], active: u32) -> Self {
-        let row = |f: &dyn Fn(&Ray) -> f32| f32x8::new(std::array::from_fn(|l| f(&rays[l])));
-        let o = [row(&|r| r.o.x), row(&|r| r.o.y), row(&|r| r.o.z)];
-        let d = [row(&|r| r.d.x), row(&|r| r.d.y), row(&|r| r.d.z)];
+        // Axis k of every lane's origin and direction.
+        let o = [0, 1, 2].map(|k| f32x8::new(std::array::from_fn(|l| rays[l].o[k])));
+        let d = [0, 1, 2].map(|k| f32x8::new(std::array::from_fn(|l| rays[l].d[k])));
         // Finite (x - x is 0 exactly when x is finite, the point of the
         // lint's "equal operands") and not zero.
         let zero = |v: f32x8| v.simd_eq(f32x8::ZERO);
