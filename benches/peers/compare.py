@@ -64,6 +64,36 @@ def round_rates(out, key):
     return [rate(json.loads(f.read_text())) for f in (out / "rounds").glob(f"{key}-r*.json")]
 
 
+def rays_alone(out):
+    """The ray queries of step 5 of run.sh, prism and Mitsuba side by side:
+    one row per query and thread count. The hit fractions must agree (the
+    same rays in the same triangles), else the comparison is void."""
+    rows = []
+    for fp in sorted((out / "rays").glob("prism-*.json")):
+        fm = fp.with_name(fp.name.replace("prism-", "mitsuba-"))
+        if not fm.exists():
+            continue
+        p, m = json.loads(fp.read_text()), json.loads(fm.read_text())
+        mitsuba_ops = {o["op"]: o for o in m["ops"]}
+        for op in p["ops"]:
+            mo = mitsuba_ops[op["op"]]
+            if abs(op["hit_fraction"] - mo["hit_fraction"]) > 1e-4:
+                sys.exit(f"error: {fp} and {fm} disagree on the hit fraction of '{op['op']}' "
+                         f"({op['hit_fraction']:.6f} against {mo['hit_fraction']:.6f}): not the same rays or scene")
+            rows.append({"op": op["op"], "threads": p["threads"], "rays": p["rays"], "triangles": p["triangles"],
+                         "hit_fraction": op["hit_fraction"], "prism_mrays_s": p["rays"] / op["seconds"] / 1e6,
+                         "mitsuba_mrays_s": m["rays"] / mo["seconds"] / 1e6, "mitsuba": m["renderer"]})
+    if rows:
+        print(f"\nrays alone: {rows[0]['rays']:,} incoherent rays in the same {rows[0]['triangles']} triangles "
+              f"(hit fraction {rows[0]['hit_fraction']:.4f} in both), fastest of 7 passes; {rows[0]['mitsuba']}\n")
+        print("| query | threads | prism Mrays/s | Mitsuba Mrays/s | prism / Mitsuba |")
+        print("|---|---:|---:|---:|---:|")
+        for r in sorted(rows, key=lambda r: (r["threads"], r["op"])):
+            print(f"| {r['op']} | {r['threads']} | {r['prism_mrays_s']:.1f} | {r['mitsuba_mrays_s']:.1f} "
+                  f"| {r['prism_mrays_s'] / r['mitsuba_mrays_s']:.2f}x |")
+    return rows
+
+
 def main():
     out = Path(sys.argv[1] if len(sys.argv) > 1 else "target/peers")
     ref_path = out / "reference.exr"
@@ -135,7 +165,9 @@ def main():
             rounds = sorted(round_rates(out, key))
             spread = f"; rounds {rounds[0] / 1e6:.3f}-{rounds[-1] / 1e6:.3f}" if len(rounds) > 1 else ""
             print(f"\n{r['label']}: {rate(r) / 1e6:.3f} Msamples/s, best round (target >= 1){spread}")
-    (out / "results.json").write_text(json.dumps({"machine": machine, "runs": rows, "ratios": ratios}, indent=2) + "\n")
+    rays = rays_alone(out)
+    (out / "results.json").write_text(
+        json.dumps({"machine": machine, "runs": rows, "ratios": ratios, "rays_alone": rays}, indent=2) + "\n")
 
 
 if __name__ == "__main__":

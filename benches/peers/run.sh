@@ -11,9 +11,12 @@
 # 4. renders, back to back, SPP spp at RESxRES on THREADS threads:
 #    prism path, light, bdpt; Mitsuba scalar_spectral path,
 #    llvm_ad_spectral path, llvm_ad_spectral ptracer;
-# 5. a high-spp prism reference (cached: delete target/peers/reference.exr
+# 5. the rays alone: `examples/peer_rays.rs` writes 2^22 incoherent rays
+#    and times prism's ray queries on them, benches/peers/mitsuba_rays.py
+#    Mitsuba's (Embree's) on the same rays, at 1 and THREADS threads;
+# 6. a high-spp prism reference (cached: delete target/peers/reference.exr
 #    to remake it), then compare.py prints the table (relMSE, equal-time
-#    efficiency, ratios).
+#    efficiency, ratios, the rays alone).
 # Environment: SPP (64), RES (256), THREADS (2), REF_SPP (2048), ROUNDS (1:
 # with more, every renderer runs ROUNDS times, interleaved, and the fastest
 # round counts; compare.py also gives each round's own prism / Mitsuba
@@ -76,7 +79,7 @@ fi
 export DRJIT_LIBLLVM_PATH
 
 # --- 3. prism and the exported scene
-CARGO_BUILD_JOBS=${CARGO_BUILD_JOBS:-1} cargo build --release --quiet
+CARGO_BUILD_JOBS=${CARGO_BUILD_JOBS:-1} cargo build --release --quiet --bins --example peer_rays
 PRISM=target/release/prism
 PGO=${PGO:-0}
 if [[ $PGO == 1 ]]; then
@@ -193,7 +196,19 @@ for round in $(seq 1 "$ROUNDS"); do
     fi
 done
 
-# --- 5. reference and table
+# --- 5. rays alone: prism's traversal and Mitsuba's (Embree) on the same
+# incoherent rays in the same scene, at 1 and THREADS threads; compare.py
+# tabulates them beside the renders.
+mkdir -p "$OUT/rays"
+rm -f "$OUT"/rays/*.json
+for t in $(printf '%s\n' 1 "$THREADS" | sort -un); do
+    echo "== rays alone, $t thread(s)"
+    target/release/examples/peer_rays "$SCENE" "$OUT/rays/rays.f32" "$t" >"$OUT/rays/prism-$t.json"
+    "$PY" benches/peers/mitsuba_rays.py "$OUT/mitsuba-scene/scene.xml" "$OUT/rays/rays.f32" "$t" >"$OUT/rays/mitsuba-$t.json"
+done
+rm -f "$OUT/rays/rays.f32"
+
+# --- 6. reference and table
 REF="$OUT/reference.exr"
 # Reused only if it matches the run and is newer than the scene file and
 # the prism binary (an edited scene or a changed engine needs a new one).
