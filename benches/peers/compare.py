@@ -64,28 +64,48 @@ def round_rates(out, key):
     return [rate(json.loads(f.read_text())) for f in (out / "rounds").glob(f"{key}-r*.json")]
 
 
+def same_rays(fp, p, fm, m):
+    """Exits unless the two ray runs traced the same rays in the same
+    triangles: equal counts of rays, passes and triangles, hit fractions
+    within 1e-4 (watertight tests may differ on rays through an edge) and
+    mean closest-hit t within 1e-5 relative (a moved or mirrored scene
+    changes it)."""
+    problems = [f"{key}: {p[key]} against {m[key]}" for key in ("rays", "passes", "triangles") if p[key] != m[key]]
+    if abs(p["mean_hit_t"] - m["mean_hit_t"]) > 1e-5 * abs(m["mean_hit_t"]):
+        problems.append(f"mean closest-hit t: {p['mean_hit_t']:.6f} against {m['mean_hit_t']:.6f}")
+    mitsuba_ops = {o["op"]: o for o in m["ops"]}
+    for op in p["ops"]:
+        mo = mitsuba_ops.get(op["op"])
+        if mo is None:
+            problems.append(f"no '{op['op']}' query in {fm}")
+        elif abs(op["hit_fraction"] - mo["hit_fraction"]) > 1e-4:
+            problems.append(f"hit fraction of '{op['op']}': {op['hit_fraction']:.6f} against {mo['hit_fraction']:.6f}")
+    if problems:
+        sys.exit(f"error: {fp} and {fm} are not the same rays in the same scene: " + "; ".join(problems))
+
+
 def rays_alone(out):
     """The ray queries of step 5 of run.sh, prism and Mitsuba side by side:
-    one row per query and thread count. The hit fractions must agree (the
-    same rays in the same triangles), else the comparison is void."""
+    one row per query and thread count, once `same_rays` has checked that
+    the comparison holds."""
     rows = []
     for fp in sorted((out / "rays").glob("prism-*.json")):
         fm = fp.with_name(fp.name.replace("prism-", "mitsuba-"))
         if not fm.exists():
+            print(f"warning: {fp} has no Mitsuba counterpart {fm}; left out", file=sys.stderr)
             continue
         p, m = json.loads(fp.read_text()), json.loads(fm.read_text())
-        mitsuba_ops = {o["op"]: o for o in m["ops"]}
+        same_rays(fp, p, fm, m)
+        mitsuba_seconds = {o["op"]: o["seconds"] for o in m["ops"]}
         for op in p["ops"]:
-            mo = mitsuba_ops[op["op"]]
-            if abs(op["hit_fraction"] - mo["hit_fraction"]) > 1e-4:
-                sys.exit(f"error: {fp} and {fm} disagree on the hit fraction of '{op['op']}' "
-                         f"({op['hit_fraction']:.6f} against {mo['hit_fraction']:.6f}): not the same rays or scene")
-            rows.append({"op": op["op"], "threads": p["threads"], "rays": p["rays"], "triangles": p["triangles"],
-                         "hit_fraction": op["hit_fraction"], "prism_mrays_s": p["rays"] / op["seconds"] / 1e6,
-                         "mitsuba_mrays_s": m["rays"] / mo["seconds"] / 1e6, "mitsuba": m["renderer"]})
+            rows.append({"op": op["op"], "threads": p["threads"], "rays": p["rays"], "passes": p["passes"],
+                         "triangles": p["triangles"], "hit_fraction": op["hit_fraction"],
+                         "prism_mrays_s": p["rays"] / op["seconds"] / 1e6,
+                         "mitsuba_mrays_s": m["rays"] / mitsuba_seconds[op["op"]] / 1e6, "mitsuba": m["renderer"]})
     if rows:
-        print(f"\nrays alone: {rows[0]['rays']:,} incoherent rays in the same {rows[0]['triangles']} triangles "
-              f"(hit fraction {rows[0]['hit_fraction']:.4f} in both), fastest of 7 passes; {rows[0]['mitsuba']}\n")
+        r0 = rows[0]
+        print(f"\nrays alone: {r0['rays']:,} incoherent rays in the same {r0['triangles']} triangles "
+              f"(hit fraction {r0['hit_fraction']:.4f} in both), fastest of {r0['passes']} passes; {r0['mitsuba']}\n")
         print("| query | threads | prism Mrays/s | Mitsuba Mrays/s | prism / Mitsuba |")
         print("|---|---:|---:|---:|---:|")
         for r in sorted(rows, key=lambda r: (r["threads"], r["op"])):

@@ -1,18 +1,20 @@
 #!/usr/bin/env python3
-"""Mitsuba's half of the ray-throughput comparison (benches/peers/run.sh, step 6).
+"""Mitsuba's half of the ray-throughput comparison (benches/peers/run.sh, step 5).
 
   mitsuba_rays.py SCENE_XML RAYS THREADS
 
 Traces the rays that `cargo run --release --example peer_rays` wrote (f32
 ox, oy, oz, dx, dy, dz per ray) in the exported scene with the
 llvm_ad_spectral variant, whose ray queries are Embree's (MI_ENABLE_EMBREE
-in the PyPI build), as one wavefront per query, the way Mitsuba's
-integrators issue them. The fastest of 7 passes of each query counts; the
-first pass also compiles the kernel. Prints one JSON object, in the form of
-peer_rays's:
+in the PyPI build): one kernel over all rays per query, its results written
+to memory (in a render, Dr.Jit compiles the whole path loop into one kernel
+instead, and the results stay in registers). The fastest of PASSES passes
+of each query counts; the first pass also compiles the kernel. Prints one
+JSON object, in the form of peer_rays's:
   closest  ray_intersect_preliminary: t, primitive, barycentrics
   shadow   ray_test (any hit, t_max infinite)
-  surface  ray_intersect: the full SurfaceInteraction (p, n, frames, uv, wi)
+  surface  ray_intersect, with t, p, n, the shading frame, uv and wi
+           evaluated (Dr.Jit computes only what is evaluated)
 """
 
 import json
@@ -54,9 +56,12 @@ def main():
             best = min(best, time.perf_counter() - start)
         fraction = dr.mean(mi.Float(hit(out)))
         ops.append({"op": name, "seconds": best, "hit_fraction": float(np.array(fraction).ravel()[0])})
+    t = np.array(scene.ray_intersect_preliminary(ray).t, dtype=np.float64)
+    mean_hit_t = float(t[np.isfinite(t)].mean())
     triangles = sum(shape.face_count() for shape in scene.shapes())
     print(json.dumps({"renderer": f"mitsuba {mi.__version__} llvm_ad_spectral (Embree)", "threads": threads,
-                      "rays": len(raw), "triangles": triangles, "ops": ops}))
+                      "rays": len(raw), "passes": PASSES, "triangles": triangles, "mean_hit_t": mean_hit_t,
+                      "ops": ops}))
 
 
 if __name__ == "__main__":

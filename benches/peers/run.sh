@@ -41,6 +41,12 @@ DRJIT_VERSION=1.5.0
 NUMPY_VERSION=2.1.3
 REF_PASSES=8
 
+for v in SPP RES THREADS REF_SPP ROUNDS; do
+    if ! [[ ${!v} =~ ^[1-9][0-9]*$ ]]; then
+        echo "error: $v must be a positive integer (is '${!v}')" >&2
+        exit 1
+    fi
+done
 if (( REF_SPP % REF_PASSES != 0 )); then
     echo "error: REF_SPP ($REF_SPP) must be a multiple of $REF_PASSES" >&2
     exit 1
@@ -199,14 +205,19 @@ done
 # --- 5. rays alone: prism's traversal and Mitsuba's (Embree) on the same
 # incoherent rays in the same scene, at 1 and THREADS threads; compare.py
 # tabulates them beside the renders.
+# Each result is written under a temporary name and moved into place, so a
+# failed run leaves no partial JSON; the 100 MB ray file is removed either way.
 mkdir -p "$OUT/rays"
 rm -f "$OUT"/rays/*.json
+trap 'rm -f "$OUT/rays/rays.f32" "$OUT"/rays/*.tmp' EXIT
 for t in $(printf '%s\n' 1 "$THREADS" | sort -un); do
     echo "== rays alone, $t thread(s)"
-    target/release/examples/peer_rays "$SCENE" "$OUT/rays/rays.f32" "$t" >"$OUT/rays/prism-$t.json"
-    "$PY" benches/peers/mitsuba_rays.py "$OUT/mitsuba-scene/scene.xml" "$OUT/rays/rays.f32" "$t" >"$OUT/rays/mitsuba-$t.json"
+    target/release/examples/peer_rays "$SCENE" "$OUT/rays/rays.f32" "$t" >"$OUT/rays/prism-$t.tmp"
+    "$PY" benches/peers/mitsuba_rays.py "$OUT/mitsuba-scene/scene.xml" "$OUT/rays/rays.f32" "$t" \
+        >"$OUT/rays/mitsuba-$t.tmp"
+    mv "$OUT/rays/prism-$t.tmp" "$OUT/rays/prism-$t.json"
+    mv "$OUT/rays/mitsuba-$t.tmp" "$OUT/rays/mitsuba-$t.json"
 done
-rm -f "$OUT/rays/rays.f32"
 
 # --- 6. reference and table
 REF="$OUT/reference.exr"
