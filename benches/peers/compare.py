@@ -104,8 +104,10 @@ def rays_alone(out):
                          "mitsuba_mrays_s": m["rays"] / mitsuba_seconds[op["op"]] / 1e6, "mitsuba": m["renderer"]})
     if rows:
         r0 = rows[0]
-        print(f"\nrays alone: {r0['rays']:,} incoherent rays in the same {r0['triangles']} triangles "
-              f"(hit fraction {r0['hit_fraction']:.4f} in both), fastest of {r0['passes']} passes; {r0['mitsuba']}\n")
+        print(f"\nrays alone: {r0['rays']:,} random rays from inside the scene's box, in the same {r0['triangles']} "
+              f"triangles (hit fraction {r0['hit_fraction']:.4f} in both), fastest of {r0['passes']} passes; "
+              f"{r0['mitsuba']}. Not the rays of a render: on those Embree is faster "
+              f"(docs/performance.md, \"Session 22\")\n")
         print("| query | threads | prism Mrays/s | Mitsuba Mrays/s | prism / Mitsuba |")
         print("|---|---:|---:|---:|---:|")
         for r in sorted(rows, key=lambda r: (r["threads"], r["op"])):
