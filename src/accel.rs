@@ -482,8 +482,13 @@ impl TriangleBlock {
     /// The vertices of the triangle in `lane`, bit for bit as given.
     #[inline(always)]
     fn vertices(&self, lane: usize) -> [Vec3A; 3] {
-        let c = &self.c;
-        [0, 1, 2].map(|j| Vec3A::new(c[j][lane], c[3 + j][lane], c[6 + j][lane]))
+        // (Written out: in session 22's replay of a render's rays, a program
+        // calling prism as a library, `[0, 1, 2].map` here was compiled out
+        // of line, a call per fetch that made its packets 1.8x and its
+        // closest hits 1.25x slower than the render's own code; see
+        // docs/performance.md, "Session 23".)
+        let vertex = |j: usize| Vec3A::new(self.c[j][lane], self.c[3 + j][lane], self.c[6 + j][lane]);
+        [vertex(0), vertex(1), vertex(2)]
     }
 }
 
