@@ -16,7 +16,7 @@ fn stderr(o: &Output) -> String {
 }
 
 fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("prism-cli-{name}-{}", std::process::id()));
+    let d = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("prism-cli-{name}-{}", std::process::id()));
     std::fs::create_dir_all(&d).unwrap();
     d
 }
@@ -60,6 +60,7 @@ fn renders_exr_png_and_sidecar() {
     assert_eq!(sidecar["build_target"], prism::build_target().as_str());
     assert!(prism::build_target().starts_with(std::env::consts::ARCH));
     assert_eq!(cfg!(target_feature = "fma"), prism::build_target().contains("+fma"));
+    let _ = std::fs::remove_dir_all(&d);
 }
 
 #[test]
@@ -72,6 +73,7 @@ fn unknown_integrator_lists_the_valid_ones() {
     let e = stderr(&o);
     assert!(e.contains("unknown integrator \"magic\"") && e.contains("path") && e.contains("simple_path"), "{e}");
     assert!(!out.exists());
+    let _ = std::fs::remove_dir_all(&d);
 }
 
 #[test]
@@ -118,6 +120,7 @@ fn bad_scenes_name_file_line_and_field() {
         assert!(e.contains(words), "case {i}: expected {words:?} in {e}");
         assert!(!out.exists(), "case {i} left an output file");
     }
+    let _ = std::fs::remove_dir_all(&d);
 }
 
 #[test]
@@ -132,6 +135,7 @@ fn failed_render_leaves_existing_output_untouched() {
     let o = prism(&["render", &write(&d, "s.json", scenes::TINY_SCENE), "--out", "/no/such/dir/x.exr", "--quiet"]);
     assert!(!o.status.success());
     assert!(stderr(&o).contains("/no/such/dir"), "{}", stderr(&o));
+    let _ = std::fs::remove_dir_all(&d);
 }
 
 #[test]

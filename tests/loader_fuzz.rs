@@ -95,7 +95,8 @@ fn manifest() -> &'static Path {
 fn mesh_dir() -> &'static Path {
     static DIR: OnceLock<PathBuf> = OnceLock::new();
     DIR.get_or_init(|| {
-        let d = std::env::temp_dir().join(format!("prism-loader-fuzz-{}", std::process::id()));
+        let d =
+            std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("prism-loader-fuzz-{}", std::process::id()));
         std::fs::create_dir_all(&d).unwrap();
         std::fs::write(
             d.join("tri.obj"),

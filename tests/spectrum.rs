@@ -192,7 +192,8 @@ fn table_coefficients_alone_are_close_for_textures() {
 fn table_file_round_trips_and_rejects_garbage() {
     let t = RgbToSpectrumTable::generate(4);
     assert_eq!(t.res(), 4);
-    let path = std::env::temp_dir().join(format!("prism-rgb-table-{}.bin", std::process::id()));
+    let path =
+        std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("prism-rgb-table-{}.bin", std::process::id()));
     t.write(&path).unwrap();
     let back = RgbToSpectrumTable::read(&path).unwrap();
     std::fs::remove_file(&path).unwrap();
