@@ -409,8 +409,7 @@ const PREVIOUS: &[u8] = b"previous contents";
 const MIXED_OBJ: &str = "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nvn 0 1 0\nf 1//1 2//1 3//1\nf 1 3 4\n";
 
 fn case_dir(id: &str) -> PathBuf {
-    let d =
-        std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("prism-bad-input-{}-{id}", std::process::id()));
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("prism-bad-input-{}-{id}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d

@@ -16,7 +16,7 @@ fn stderr(o: &Output) -> String {
 }
 
 fn temp_dir(name: &str) -> PathBuf {
-    let d = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("prism-cli-{name}-{}", std::process::id()));
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("prism-cli-{name}-{}", std::process::id()));
     std::fs::create_dir_all(&d).unwrap();
     d
 }

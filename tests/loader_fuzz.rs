@@ -95,8 +95,7 @@ fn manifest() -> &'static Path {
 fn mesh_dir() -> &'static Path {
     static DIR: OnceLock<PathBuf> = OnceLock::new();
     DIR.get_or_init(|| {
-        let d =
-            std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("prism-loader-fuzz-{}", std::process::id()));
+        let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("prism-loader-fuzz-{}", std::process::id()));
         std::fs::create_dir_all(&d).unwrap();
         std::fs::write(
             d.join("tri.obj"),
