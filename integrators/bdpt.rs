@@ -224,12 +224,7 @@ fn next_event(
     if l.is_black() {
         return None;
     }
-    let visible = if source.is_infinite() {
-        scene.escapes(pt.si.point(), ls.wi)
-    } else {
-        scene.unoccluded(pt.si.point(), ls.point())
-    };
-    if !visible {
+    if !scene.visible(&source.shadow(pt.si.point(), &ls)) {
         return None;
     }
     let sq = q.scatter(scene, g.w, lambda, TransportMode::Importance);

@@ -196,9 +196,7 @@ fn next_event(
     if f.is_black() {
         return SampledSpectrum::ZERO;
     }
-    let visible =
-        if light.is_infinite() { scene.escapes(si.point(), ls.wi) } else { scene.unoccluded(si.point(), ls.point()) };
-    if !visible {
+    if !scene.visible(&light.shadow(si.point(), &ls)) {
         return SampledSpectrum::ZERO;
     }
     let pdf_light = pmf * ls.pdf_w;

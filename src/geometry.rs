@@ -120,6 +120,33 @@ impl SurfacePoint {
     }
 }
 
+/// A shadow ray: whether light passes between a point and a light sample.
+/// Nothing may block `ray` in (0, t_max).
+#[derive(Clone, Copy, Debug)]
+pub struct Shadow {
+    pub ray: Ray,
+    pub t_max: f32,
+}
+
+impl Shadow {
+    /// The segment between two points, each end offset off its own surface
+    /// (pbrt-v4 `SpawnRayTo` from both ends).
+    #[inline(always)]
+    pub fn segment(a: SurfacePoint, b: SurfacePoint) -> Self {
+        let d = b.p - a.p;
+        let o = a.spawn_origin(d);
+        let target = b.spawn_origin(-d);
+        // pbrt-v4's ShadowEpsilon: stop just short of the far end.
+        Self { ray: Ray { o, d: target - o, skip: [a.slot, b.slot] }, t_max: 1.0 - 1e-4 }
+    }
+
+    /// From a point towards infinity in direction `w` (an infinite light).
+    #[inline]
+    pub fn escape(a: SurfacePoint, w: Vec3A) -> Self {
+        Self { ray: a.spawn_ray(w), t_max: f32::INFINITY }
+    }
+}
+
 /// Offset a spawned ray's origin off the surface so it cannot re-hit it
 /// (pbrt-v4 section 6.8.6, `OffsetRayOrigin`): move `p` along the unit
 /// geometric normal `n`, to the side of the direction `w`, by

@@ -8,7 +8,7 @@
 //!
 //! Lights are an enum matched in the hot loop; one light per emissive triangle.
 
-use crate::geometry::{barycentric_error, Frame, Ray, SurfacePoint, NO_TRIANGLE};
+use crate::geometry::{barycentric_error, Frame, Ray, Shadow, SurfacePoint, NO_TRIANGLE};
 use crate::sampling::{cosine_hemisphere, uniform_sphere, uniform_triangle, UNIFORM_SPHERE_PDF};
 use crate::spectrum::{SampledSpectrum, SampledWavelengths, Spectrum};
 use glam::{Vec2, Vec3A};
@@ -103,6 +103,17 @@ impl Light {
     #[inline]
     pub fn is_infinite(&self) -> bool {
         matches!(self, Light::Environment(_))
+    }
+
+    /// The shadow ray that decides whether `ls`, sampled by `sample_li`
+    /// from `from`, is seen there.
+    #[inline(always)]
+    pub fn shadow(&self, from: SurfacePoint, ls: &LightLiSample) -> Shadow {
+        if self.is_infinite() {
+            Shadow::escape(from, ls.wi)
+        } else {
+            Shadow::segment(from, ls.point())
+        }
     }
 
     /// Emitted power, used only to choose lights proportionally (luminance).

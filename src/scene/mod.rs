@@ -12,7 +12,7 @@ pub use json::{load_scene, parse_scene, LoadError};
 
 use crate::accel::{Accel, TriangleHit, LANES};
 use crate::camera::Camera;
-use crate::geometry::{barycentric_error, Frame, Ray, SurfacePoint, NO_TRIANGLE};
+use crate::geometry::{barycentric_error, Frame, Ray, Shadow, SurfacePoint, NO_TRIANGLE};
 use crate::light::{AreaLight, EnvironmentLight, Light, PointLight};
 use crate::materials::Bsdf;
 use crate::sampling::AliasTable;
@@ -383,26 +383,19 @@ impl Scene {
     }
 
     /// Whether the segment between two points is unobstructed; each end is
-    /// offset off its own surface (pbrt-v4 `SpawnRayTo` from both ends).
+    /// offset off its own surface (`Shadow::segment`).
     /// Always inlined, so that its callers pass no `SurfacePoint` through
     /// memory; the traversal itself (`Accel::occluded`) stays out of line.
     #[inline(always)]
     pub fn unoccluded(&self, a: SurfacePoint, b: SurfacePoint) -> bool {
-        let d = b.p - a.p;
-        let o = a.spawn_origin(d);
-        let target = b.spawn_origin(-d);
-        let ray = Ray { o, d: target - o, skip: [a.slot, b.slot] };
-        count_rays(1);
-        // pbrt-v4's ShadowEpsilon: stop just short of the far end.
-        !self.accel.occluded(&ray, 1.0 - 1e-4)
+        self.visible(&Shadow::segment(a, b))
     }
 
-    /// Whether a ray leaving a point towards infinity escapes.
-    #[inline]
-    pub fn escapes(&self, a: SurfacePoint, w: Vec3A) -> bool {
-        let ray = a.spawn_ray(w);
+    /// Whether nothing blocks a shadow ray.
+    #[inline(always)]
+    pub fn visible(&self, shadow: &Shadow) -> bool {
         count_rays(1);
-        !self.accel.occluded(&ray, f32::INFINITY)
+        !self.accel.occluded(&shadow.ray, shadow.t_max)
     }
 
     #[inline]
