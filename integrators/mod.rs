@@ -182,7 +182,7 @@ pub fn effective_mis(name: &str, mis: MisHeuristic) -> MisHeuristic {
 }
 
 /// Russian roulette on throughput (pbrt-v4 PathIntegrator): after
-/// `min_depth` bounces, continue with probability min(1, max beta') where
+/// `MIN_DEPTH` bounces, continue with probability min(1, max beta') where
 /// beta' is the throughput with refraction's 1/eta^2 taken out; survivors
 /// are reweighted by 1/(continuation probability). Returns false to stop.
 #[inline]

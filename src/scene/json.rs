@@ -2,7 +2,7 @@
 //!
 //! Parsing is two-staged: serde reads the file into the `*Spec` types below
 //! (`deny_unknown_fields`, so a misspelt parameter is an error, as in
-//! Mitsuba), then `resolve` turns names into spectra, materials and meshes.
+//! Mitsuba), then `build` turns names into spectra, materials and meshes.
 //! Every error names the file, line, column and field path:
 //! `scenes/x.json:14:9: materials.glass.ior: unknown spectrum "BK8" (known: ...)`.
 

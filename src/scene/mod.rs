@@ -55,7 +55,7 @@ pub struct RenderDefaults {
 const NO_LIGHT: u32 = u32::MAX;
 
 /// What shading needs of one mesh beyond its vertex positions (those are
-/// kept once, in the BVH: `Accel::triangle`). The mesh's triangles are
+/// kept once, in the BVH: `Accel::vertices`). The mesh's triangles are
 /// `start..start + len` in the scene's numbering, which is the BVH's input
 /// order and the order of `SceneBuilder::mesh` calls.
 #[derive(Debug)]
@@ -154,7 +154,7 @@ pub struct Scene {
     /// 2^16 meshes, whose hits use `mesh_index`.
     slot_mesh: Option<Vec<u16>>,
     /// Vertices of the degenerate triangles, which the BVH does not store
-    /// (never hit; kept for `triangle`), sorted by triangle index.
+    /// (never hit; kept for `triangles`), sorted by triangle index.
     degenerate: Vec<(u32, [Vec3A; 3])>,
     pub materials: Vec<Material>,
     pub lights: Vec<Light>,
@@ -500,7 +500,7 @@ mod tests {
     }
 
     /// Meshes of every kind (flat, smooth, emissive, empty, with a
-    /// degenerate triangle): `triangle` gives back what went in, and the
+    /// degenerate triangle): `triangles` gives back what went in, and the
     /// geometry (BVH included) stays within the memory budget of issue 10.
     #[test]
     fn triangles_round_trip_and_geometry_is_compact() {
