@@ -120,8 +120,8 @@ impl SurfacePoint {
     }
 }
 
-/// A shadow ray: whether light passes between a point and a light sample.
-/// Nothing may block `ray` in (0, t_max).
+/// A shadow ray, the test of whether light passes between two points or
+/// from a point to infinity: nothing may block `ray` in (0, t_max).
 #[derive(Clone, Copy, Debug)]
 pub struct Shadow {
     pub ray: Ray,
