@@ -12,6 +12,8 @@
 #[path = "common/scenes.rs"]
 mod scenes;
 
+use scenes::temp_dir;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -408,16 +410,9 @@ const PREVIOUS: &[u8] = b"previous contents";
 
 const MIXED_OBJ: &str = "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nvn 0 1 0\nf 1//1 2//1 3//1\nf 1 3 4\n";
 
-fn case_dir(id: &str) -> PathBuf {
-    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("prism-bad-input-{}-{id}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
 /// Runs one case; returns a description of what went wrong, if anything.
 fn run(case: &Case) -> Result<(), String> {
-    let dir = case_dir(case.id);
+    let dir = temp_dir(case.id);
     let mut text = scenes::TINY_SCENE.to_string();
     for (from, to) in case.edits {
         if !text.contains(from) {
@@ -509,7 +504,7 @@ fn every_bad_input_gives_one_clear_error_and_keeps_existing_output() {
 /// reason it names, not because the base scene or command is broken).
 #[test]
 fn the_base_case_succeeds() {
-    let dir = case_dir("base");
+    let dir = temp_dir("base");
     std::fs::write(dir.join("s.json"), scenes::TINY_SCENE).unwrap();
     let out = dir.join("out.exr");
     std::fs::write(&out, PREVIOUS).unwrap();

@@ -4,7 +4,9 @@
 #[path = "common/scenes.rs"]
 mod scenes;
 
-use std::path::{Path, PathBuf};
+use scenes::temp_dir;
+
+use std::path::Path;
 use std::process::{Command, Output};
 
 fn prism(args: &[&str]) -> Output {
@@ -13,12 +15,6 @@ fn prism(args: &[&str]) -> Output {
 
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).to_string()
-}
-
-fn temp_dir(name: &str) -> PathBuf {
-    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("prism-cli-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
 }
 
 fn write(dir: &Path, name: &str, text: &str) -> String {

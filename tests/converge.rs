@@ -6,18 +6,13 @@
 #[path = "common/scenes.rs"]
 mod scenes;
 
+use scenes::temp_dir;
+
 use prism::converge::{run, Clock, ConvergeConfig, ConvergeResults, IntegratorSpec, ReferenceSource};
 use prism::film::write_exr;
 use prism::spectrum::Spectrum;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-
-fn temp_dir(name: &str) -> PathBuf {
-    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("prism-converge-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 fn scene_path(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(name)

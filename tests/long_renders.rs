@@ -5,6 +5,10 @@
 //! and resume refuse what does not belong together, and bad flags are
 //! refused, with clear errors.
 
+#[path = "common/scenes.rs"]
+mod scenes;
+
+use scenes::temp_dir;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
@@ -38,13 +42,6 @@ fn fails(args: &[&str]) -> String {
     let e = stderr(&o);
     assert_eq!(e.lines().filter(|l| l.starts_with("error:")).count(), 1, "{e}");
     e
-}
-
-fn temp_dir(name: &str) -> PathBuf {
-    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("prism-long-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
 }
 
 fn s(p: &Path) -> String {

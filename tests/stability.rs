@@ -234,8 +234,7 @@ fn warnings_where_methods_fail() {
 /// (not even a dropped-sample warning) on the Cornell box.
 #[test]
 fn cli_prints_the_warnings() {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("prism-stability-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = scenes::temp_dir("stability-cli");
     let run = |scene: &str, integ: &str| {
         let out = dir.join(format!("{integ}.exr"));
         let o = Command::new(env!("CARGO_BIN_EXE_prism"))

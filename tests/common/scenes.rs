@@ -7,7 +7,16 @@ use prism::integrators::{self, Integrator, IntegratorOptions, MisHeuristic};
 use prism::scene::{load_scene, parse_scene, Scene};
 use prism::spectrum::{spectrum_to_xyz, xyz_to_linear_srgb, Spectrum};
 use prism::stats::{ColourStats, Image, Verdict};
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+/// A fresh, empty directory `prism-<name>-<pid>` for one test's files,
+/// under Cargo's directory for integration tests' temporary files.
+pub fn temp_dir(name: &str) -> PathBuf {
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("prism-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
 
 /// Loads `scenes/<name>` at `width` x `height`.
 pub fn scene(name: &str, width: u32, height: u32) -> Scene {
