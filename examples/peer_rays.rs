@@ -1,5 +1,5 @@
 //! prism's half of the ray-throughput comparison with Mitsuba 3
-//! (benches/peers/run.sh, step 5; docs/performance.md, "Session 22").
+//! (benches/peers/run.sh, step 5; docs/performance-log.md, "Session 22").
 //!
 //!   cargo run --release --example peer_rays -- SCENE RAYS_OUT THREADS
 //!

@@ -62,7 +62,7 @@ impl Integrator for PathTracer {
     /// The samples' camera rays leave one pixel in nearly one direction:
     /// they are traced together, as a packet (`Scene::intersect8`), and
     /// each path then goes on alone; its later rays part ways, and
-    /// incoherent packets cost more than rays alone (docs/performance.md,
+    /// incoherent packets cost more than rays alone (docs/performance-log.md,
     /// "Session 20"). Each lane computes what `sample` computes for its
     /// sample (tests/lanes.rs).
     fn sample_lanes(

@@ -174,7 +174,7 @@ impl Bsdf {
         dispatch!(self, b => b.eval(wo, wi, lambda, mode))
     }
 
-    /// Always inlined into the walks (docs/performance.md, "Session 16").
+    /// Always inlined into the walks (docs/performance-log.md, "Session 16").
     #[inline(always)]
     pub fn sample(
         &self,

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # A profile-guided build of prism (rustc's PGO, LLVM's instrumentation
 # profiles): the same code and flags as `cargo build --release`, laid out and
-# inlined by where a render spends its time (docs/performance.md, "A
+# inlined by where a render spends its time (docs/performance-log.md, "A
 # profile-guided build").
 #
 #   scripts/pgo-build.sh          # from the repository root: target/pgo/prism

@@ -234,7 +234,7 @@ impl Accel {
     /// runs blocks the ray in (0, t_max); stops at the first hit. Out of
     /// line: inlined with `Scene::unoccluded` into `Bdpt::sample`'s
     /// connections, it cost `bdpt` 11 % more instructions
-    /// (docs/performance.md, "Session 16").
+    /// (docs/performance-log.md, "Session 16").
     #[inline(never)]
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
         let Some(pre) = PreparedRay::new(ray) else {
@@ -486,7 +486,7 @@ impl TriangleBlock {
         // calling prism as a library, `[0, 1, 2].map` here was compiled out
         // of line, a call per fetch that made its packets 1.8x and its
         // closest hits 1.25x slower than the render's own code; see
-        // docs/performance.md, "Session 23".)
+        // docs/performance-log.md, "Session 23".)
         let vertex = |j: usize| Vec3A::new(self.c[j][lane], self.c[3 + j][lane], self.c[6 + j][lane]);
         [vertex(0), vertex(1), vertex(2)]
     }

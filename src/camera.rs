@@ -149,7 +149,7 @@ impl Camera {
         }
         // The point on the plane z = 1, in pixels from the image centre:
         // one division per coordinate, where dividing by z and by the
-        // half extent in turn took two, in a chain (docs/performance.md,
+        // half extent in turn took two, in a chain (docs/performance-log.md,
         // "Session 18").
         let (w, h) = (self.width as f32, self.height as f32);
         let r = Vec2::new(d.dot(self.right), d.dot(self.up)) * self.raster_scale / z + Vec2::new(0.5 * w, 0.5 * h);

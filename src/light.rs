@@ -149,7 +149,7 @@ impl Light {
 
     /// A light sample for next-event estimation at `p_ref`: the point, the
     /// incident radiance and its solid-angle density (pbrt `SampleLi`).
-    /// Always inlined (docs/performance.md, "Session 16").
+    /// Always inlined (docs/performance-log.md, "Session 16").
     #[inline(always)]
     pub fn sample_li(&self, p_ref: Vec3A, u: Vec2, lambda: &SampledWavelengths) -> Option<LightLiSample> {
         match self {

@@ -268,7 +268,7 @@ impl Vertex {
     /// Le^(1) and its emission density, the pinhole its directional
     /// importance density, a vertex at infinity the planar density of its
     /// emitted rays (pbrt `Vertex::f`, `Vertex::Pdf`, `PdfLight`). Always
-    /// inlined, as the profile-guided build chose (docs/performance.md,
+    /// inlined, as the profile-guided build chose (docs/performance-log.md,
     /// "Session 16").
     #[inline(always)]
     pub fn scatter(&self, scene: &Scene, wi: Vec3A, lambda: &SampledWavelengths, mode: TransportMode) -> Scatter {
@@ -442,7 +442,7 @@ pub fn light_subpath<const MIS: bool>(
 /// `pdf` the density (solid angle; planar from the environment) with which
 /// its direction was chosen; with `MIS`, each vertex also gets its
 /// densities in area measure. Always inlined, as the profile-guided build
-/// chose (docs/performance.md, "Session 16").
+/// chose (docs/performance-log.md, "Session 16").
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn random_walk<const MIS: bool>(
@@ -532,7 +532,7 @@ fn push_vertex<const MIS: bool>(path: &mut Vec<Vertex>, mut v: Vertex, pdf: f32)
 /// the shading correction, |cos| with the shading normal), or None if `v`
 /// cannot connect, projects outside the image, carries nothing or is
 /// occluded. Always inlined, as the profile-guided build chose
-/// (docs/performance.md, "Session 16").
+/// (docs/performance-log.md, "Session 16").
 #[inline(always)]
 pub fn connect_to_camera(scene: &Scene, v: &Vertex, lambda: &SampledWavelengths) -> Option<CameraConnection> {
     if v.is_infinite() || !v.connectible {

@@ -331,7 +331,7 @@ impl Merge<'_> {
     /// 3 MiB at 256 x 256), which had left the cache by the next merge:
     /// added one tile at a time, even in pixel order, they cost `bdpt` 2.3 %
     /// of its time and `light` 7 %. Held until there are about as many as
-    /// pixels, one pass over the film serves them all (docs/performance.md,
+    /// pixels, one pass over the film serves them all (docs/performance-log.md,
     /// "Session 18"). The order is a function of the tiles' order, so the
     /// film's drop decisions stay deterministic.
     fn add_splats(&mut self) {

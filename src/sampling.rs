@@ -47,7 +47,7 @@ pub fn mix64(mut z: u64) -> u64 {
 /// which matters for stratified or low-discrepancy points, not for the
 /// independent numbers prism draws. The polar map leaves fewer operations
 /// in a chain: no division, and cos(theta) = sqrt(1 - u.x) does not wait
-/// for the disk point (docs/performance.md, "Session 18").
+/// for the disk point (docs/performance-log.md, "Session 18").
 #[inline]
 pub fn cosine_hemisphere(u: Vec2) -> Vec3A {
     let r = u.x.sqrt();

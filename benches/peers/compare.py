@@ -107,7 +107,7 @@ def rays_alone(out):
         print(f"\nrays alone: {r0['rays']:,} random rays from inside the scene's box, in the same {r0['triangles']} "
               f"triangles (hit fraction {r0['hit_fraction']:.4f} in both), fastest of {r0['passes']} passes; "
               f"{r0['mitsuba']}. Not the rays of a render: on those Embree is 1.14x faster over a "
-              f"sample's rays, all of it on shadow rays (docs/performance.md, \"Session 23\")\n")
+              f"sample's rays, all of it on shadow rays (docs/performance-log.md, \"Session 23\")\n")
         print("| query | threads | prism Mrays/s | Mitsuba Mrays/s | prism / Mitsuba |")
         print("|---|---:|---:|---:|---:|")
         for r in sorted(rows, key=lambda r: (r["threads"], r["op"])):

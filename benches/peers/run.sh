@@ -99,7 +99,7 @@ rm -f "$OUT"/runs/*.json "$OUT"/rounds/*.json
 # The machine, and the vector width each renderer compiles for: Dr.Jit JITs
 # Mitsuba's LLVM kernels for the host (16 float lanes where it has
 # AVX-512), prism is built for a fixed level (.cargo/config.toml), so the
-# ratios depend on the host's vector ISA (docs/performance.md, "Session 16").
+# ratios depend on the host's vector ISA (docs/performance-log.md, "Session 16").
 cpu_field() { sed -n "s/^$1[[:space:]]*: *//p" /proc/cpuinfo | head -1; }
 DRJIT_IR=$("$PY" -c 'import drjit as dr; dr.set_log_level(dr.LogLevel.Trace); dr.eval(dr.llvm.Float(1, 2) + 1)' 2>&1 || true)
 "$PY" - "$OUT/machine.json" <<PYEOF

@@ -13,7 +13,7 @@
 //! (and, through the range test against the shrinking t_max, among hits
 //! within a rounding error of each other).
 //!
-//! Packets pay for coherent rays only (docs/performance.md, "Session 20"):
+//! Packets pay for coherent rays only (docs/performance-log.md, "Session 20"):
 //! a pixel's camera rays trace 2.9x faster than one at a time, incoherent
 //! rays 0.87x as fast (the union of their nodes and triangles grows nearly
 //! as fast as the lanes), so `path` traces its camera rays this way and

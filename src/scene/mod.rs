@@ -316,7 +316,7 @@ impl SceneBuilder {
 
 impl Scene {
     /// Closest surface hit along the ray. Always inlined, traversal and
-    /// all, as the profile-guided build chose (docs/performance.md,
+    /// all, as the profile-guided build chose (docs/performance-log.md,
     /// "Session 16").
     #[inline(always)]
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceInteraction> {

@@ -187,7 +187,7 @@ impl SampledWavelengths {
 /// 830 nm, where p also changes fastest relative to itself. Drawing
 /// from it is three loads per lane; the analytic inverse, a vector logarithm
 /// whose polynomial is one chain of dependent multiplies, took ~4 % of
-/// `light`'s time (docs/performance.md, "Session 18").
+/// `light`'s time (docs/performance-log.md, "Session 18").
 struct VisibleTable {
     lambda: Vec<f32>,
     pdf: Vec<f32>,

@@ -1,4 +1,4 @@
-# Scratch script of session 22 (docs/performance.md, "Session 22"), kept as a record: run with the
+# Scratch script of session 22 (docs/performance-log.md, "Session 22"), kept as a record: run with the
 # peers venv and DRJIT_LIBLLVM_PATH set; its argument is the ray log that ray-log.patch makes prism write.
 # Mitsuba (Embree) on the rays a prism `path` render traced: kind 0 bounce, 1 shadow, 2 camera.
 import sys, time, numpy as np, drjit as dr, mitsuba as mi

@@ -1,4 +1,4 @@
-// Scratch program of session 23 (docs/performance.md, "Session 23"), kept as a record, not built: a
+// Scratch program of session 23 (docs/performance-log.md, "Session 23"), kept as a record, not built: a
 // binary of the same Cargo project as prism_render_rays.rs; arguments: the ray log, the kind, the passes.
 // One query kind in a loop, for perf annotate: one.rs FILE KIND(0 bounce, 1 shadow, 2 camera) REPS
 use glam::Vec3A;

@@ -1,4 +1,4 @@
-// Scratch program of session 22 (docs/performance.md, "Session 22"), kept as a record, not built:
+// Scratch program of session 22 (docs/performance-log.md, "Session 22"), kept as a record, not built:
 // a Cargo project with `prism = { path = "<repo>" }`, glam and rayon as dependencies; its argument is the ray log.
 // prism's ray queries on the rays a `path` render traced (logged by a scratch build):
 // kind 0 bounce closest hits, 1 shadow rays, 2 camera rays (8 per pixel, traced as packets in the render).
