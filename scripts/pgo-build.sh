@@ -17,6 +17,9 @@
 #    box and the dispersive prism bit for bit alike with every integrator (PGO
 #    changes code layout and inlining, never floating-point semantics), else
 #    the script fails.
+# The whole script is one block, which bash reads before it runs any of it:
+# a file edited during a run (a checkout, a pull) cannot break the run.
+{
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -71,3 +74,5 @@ for scene in cornell-box prism-dispersion; do
     done
 done
 echo "$OUT/prism"
+exit
+}

@@ -25,6 +25,9 @@
 # PGO (0: with 1, scripts/pgo-build.sh makes a profile-guided build too, and
 # its path, light and bdpt run beside the plain build's in every round; ~5
 # minutes more).
+# The whole script is one block, which bash reads before it runs any of it:
+# a file edited during a run (a checkout, a pull) cannot break the run.
+{
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 
@@ -230,3 +233,5 @@ if ! [ "$OUT/reference.json" -nt "$SCENE" ] || ! [ "$OUT/reference.json" -nt "$P
         --width "$RES" --height "$RES" --threads "$THREADS" --out "$REF"
 fi
 "$PY" benches/peers/compare.py "$OUT" | tee "$OUT/table.md"
+exit
+}
