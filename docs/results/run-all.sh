@@ -2,7 +2,10 @@
 # Regenerates docs/results/<scene>/ (see docs/results.md): for each scene of
 # the suite, a reference rendered by `prism converge` itself (kept out of the
 # repository, in target/converge-refs/) and a run of 20 CPU-seconds per
-# integrator at 128x128. About 9 minutes on a 2-core machine (8 min 36 s in session 8).
+# integrator at 128x128. About 13 minutes on a 2-core machine (session 25).
+# The references have 4x the samples of session 8's: at today's speed the
+# integrators' 20 s runs reach errors the old references' own noise was
+# 30-70 % of.
 #
 #   sh docs/results/run-all.sh            # builds target/release/prism first
 #   PRISM=/path/to/prism sh docs/results/run-all.sh
@@ -22,9 +25,9 @@ run() { # scene integrators reference-integrator reference-spp
         --out "docs/results/$1" $COMMON
 }
 
-run caustic          "$ALL"                 bdpt 1024
-run veach-mis        "$ALL,simple_path"     path 4096
-run gap-room         "$ALL"                 bdpt 1024
-run cornell-box      "$ALL"                 path 4096
-run cornell-glossy   "$ALL"                 bdpt 1024
-run prism-dispersion "$ALL"                 bdpt 2048
+run caustic          "$ALL"                 bdpt 4096
+run veach-mis        "$ALL,simple_path"     path 16384
+run gap-room         "$ALL"                 bdpt 4096
+run cornell-box      "$ALL"                 path 16384
+run cornell-glossy   "$ALL"                 bdpt 4096
+run prism-dispersion "$ALL"                 bdpt 8192
