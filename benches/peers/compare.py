@@ -162,6 +162,8 @@ def main():
         ("prism-path", "mitsuba-llvm-path", 2.0),
         ("prism-path", "mitsuba-scalar-path", None),
         ("prism-light", "mitsuba-llvm-ptracer", 2.0),
+        ("prism-path", "mitsuba-avx2-path", None),
+        ("prism-light", "mitsuba-avx2-ptracer", None),
         ("prism-pgo-path", "mitsuba-llvm-path", 2.0),
         ("prism-pgo-light", "mitsuba-llvm-ptracer", 2.0),
     ]

@@ -7,6 +7,10 @@ chosen here, not in the XML, so one export serves every variant:
   ptracer  Mitsuba's `ptracer` (light / particle tracing), max_depth -1
 Both use rr_depth 4: prism's roulette starts after 4 scattering events.
 
+With --avx2, the LLVM kernels are compiled for x86-64-v3 with 8 float
+lanes whatever the host has (Dr.Jit's `jit_llvm_set_target`), so that on
+an AVX-512 host Mitsuba runs at an AVX2 host's width (docs/performance.md).
+
 The scene is rendered --repeat times (seeds 0, 1, ...). The first call in a
 process includes Dr.Jit's kernel compilation (or loading it from the kernel
 cache in ~/.drjit) for the LLVM variants; later calls reuse the kernel.
@@ -15,7 +19,9 @@ With the LLVM variants, Dr.Jit's kernel history separates compile time
 """
 
 import argparse
+import ctypes
 import json
+import os
 import resource
 import sys
 import time
@@ -27,6 +33,23 @@ import mitsuba as mi
 def cpu_seconds():
     r = resource.getrusage(resource.RUSAGE_SELF)
     return r.ru_utime + r.ru_stime
+
+
+def hold_to_avx2():
+    """Has Dr.Jit compile the current LLVM variant's kernels for x86-64-v3
+    (AVX2, FMA) with 8 float lanes. The C API function is not in the Python
+    bindings: it is called in libdrjit-core.so by its C++ symbol,
+    jit_llvm_set_target(const char *cpu, const char *features, uint32_t width).
+    Exits if Dr.Jit does not then report 8 lanes."""
+    lib = ctypes.CDLL(os.path.join(os.path.dirname(dr.__file__), "libdrjit-core.so"))
+    set_target = lib["_Z19jit_llvm_set_targetPKcS0_j"]
+    set_target.argtypes = [ctypes.c_char_p, ctypes.c_char_p, ctypes.c_uint32]
+    features = b"+avx,+avx2,+fma,+f16c,+bmi,+bmi2,+lzcnt,+popcnt,+sse4.1,+sse4.2,+ssse3"
+    set_target(b"x86-64-v3", features, 8)
+    width = lib["_Z21jit_llvm_vector_widthv"]
+    width.restype = ctypes.c_uint32
+    if width() != 8:
+        sys.exit(f"error: Dr.Jit reports {width()} float lanes after jit_llvm_set_target(x86-64-v3, AVX2, 8)")
 
 
 def main():
@@ -44,6 +67,7 @@ def main():
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--repeat", type=int, default=2, help="renders in this process (the first includes the JIT)")
     ap.add_argument("--out", required=True, help="EXR of the last render (linear sRGB)")
+    ap.add_argument("--avx2", action="store_true", help="LLVM kernels for x86-64-v3, 8 float lanes (see above)")
     a = ap.parse_args()
 
     if a.variant not in mi.variants():
@@ -51,6 +75,10 @@ def main():
     mi.set_variant(a.variant)
     dr.set_thread_count(a.threads)
     llvm = a.variant.startswith("llvm")
+    if a.avx2:
+        if not llvm:
+            sys.exit(f"error: --avx2 needs an LLVM variant (not {a.variant})")
+        hold_to_avx2()
     if llvm:
         dr.set_flag(dr.JitFlag.KernelHistory, True)
 
@@ -94,6 +122,7 @@ def main():
             {
                 "renderer": f"mitsuba {mi.__version__} {a.variant} {a.integrator}",
                 "variant": a.variant,
+                "lanes": "avx2 (8)" if a.avx2 else "host",
                 "integrator": a.integrator,
                 "spp": a.spp,
                 "width": a.width,

@@ -25,6 +25,9 @@
 # PGO (0: with 1, scripts/pgo-build.sh makes a profile-guided build too, and
 # its path, light and bdpt run beside the plain build's in every round; ~5
 # minutes more).
+# AVX2 (0: with 1, Mitsuba's LLVM path and ptracer also run with their
+# kernels compiled for x86-64-v3 with 8 float lanes, in every round: on an
+# AVX-512 host, Mitsuba at an AVX2 host's width; ~1 minute more).
 # The whole script is one block, which bash reads before it runs any of it:
 # a file edited during a run (a checkout, a pull) cannot break the run.
 {
@@ -91,6 +94,7 @@ export DRJIT_LIBLLVM_PATH
 CARGO_BUILD_JOBS=${CARGO_BUILD_JOBS:-1} cargo build --release --quiet --bins --example peer_rays
 PRISM=target/release/prism
 PGO=${PGO:-0}
+AVX2=${AVX2:-0}
 if [[ $PGO == 1 ]]; then
     echo "== profile-guided build (scripts/pgo-build.sh)"
     scripts/pgo-build.sh >/dev/null
@@ -170,18 +174,22 @@ PYEOF
     keep_best "$1" "$3" "$json"
 }
 
-mitsuba_run() { # KEY VARIANT INTEGRATOR ROUND
+mitsuba_run() { # KEY VARIANT INTEGRATOR ROUND [--avx2]
     local exr="$OUT/images/$1-r$4.exr" raw
     local repeat=2
     [[ $2 == scalar_* ]] && repeat=1 # no JIT: one render is the measurement
-    raw=$("$PY" benches/peers/mitsuba_render.py "$OUT/mitsuba-scene/scene.xml" --variant "$2" --integrator "$3" \
-        --spp "$SPP" --width "$RES" --height "$RES" --threads "$THREADS" --repeat "$repeat" --out "$exr")
+    # Kernels compiled for another target are cached apart from the host's.
+    local cache=()
+    [[ -n ${5:-} ]] && cache=("DRJIT_CACHE_DIR=$OUT/drjit-cache-avx2")
+    raw=$(env "${cache[@]}" "$PY" benches/peers/mitsuba_render.py "$OUT/mitsuba-scene/scene.xml" --variant "$2" --integrator "$3" \
+        --spp "$SPP" --width "$RES" --height "$RES" --threads "$THREADS" --repeat "$repeat" --out "$exr" ${5:-})
     local json
     json=$("$PY" - "$raw" "$1" <<'PYEOF'
 import json, sys
 r, key = json.loads(sys.argv[1]), sys.argv[2]
 last = r["runs"][-1]
-r.update(key=key, label=f"Mitsuba {r['variant']} {r['integrator']}", wall_seconds=last["wall_seconds"],
+lanes = " (AVX2, 8 lanes)" if r["lanes"] != "host" else ""
+r.update(key=key, label=f"Mitsuba {r['variant']} {r['integrator']}{lanes}", wall_seconds=last["wall_seconds"],
          cpu_seconds=last["cpu_seconds"])
 print(json.dumps(r))
 PYEOF
@@ -197,6 +205,10 @@ for round in $(seq 1 "$ROUNDS"); do
     mitsuba_run mitsuba-scalar-path scalar_spectral path "$round"
     prism_run prism-light light "$round"
     mitsuba_run mitsuba-llvm-ptracer llvm_ad_spectral ptracer "$round"
+    if [[ $AVX2 == 1 ]]; then
+        mitsuba_run mitsuba-avx2-path llvm_ad_spectral path "$round" --avx2
+        mitsuba_run mitsuba-avx2-ptracer llvm_ad_spectral ptracer "$round" --avx2
+    fi
     prism_run prism-bdpt bdpt "$round"
     if [[ $PGO == 1 ]]; then
         for integrator in path light bdpt; do
