@@ -2,7 +2,8 @@
 # Regenerates docs/results/<scene>/ (see docs/results.md): for each scene of
 # the suite, a reference rendered by `prism converge` itself (kept out of the
 # repository, in target/converge-refs/) and a run of 20 CPU-seconds per
-# integrator at 128x128. About 13 minutes on a 2-core machine (session 25).
+# integrator at 128x128. About 12 minutes on a 2-core machine (11 min 47 s in
+# session 25).
 # The references have 4x the samples of session 8's: at today's speed the
 # integrators' 20 s runs reach errors the old references' own noise was
 # 30-70 % of.
