@@ -10,6 +10,9 @@
 //! token; the proptest adds random mutation chains. For longer runs, the
 //! cargo-fuzz target in fuzz/ (fuzz/README.md).
 
+#[path = "common/scenes.rs"]
+mod scenes;
+
 use prism::scene::locate::{skip_string, skip_value, skip_ws};
 use prism::scene::parse_scene;
 use proptest::prelude::*;
@@ -95,8 +98,7 @@ fn manifest() -> &'static Path {
 fn mesh_dir() -> &'static Path {
     static DIR: OnceLock<PathBuf> = OnceLock::new();
     DIR.get_or_init(|| {
-        let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("prism-loader-fuzz-{}", std::process::id()));
-        std::fs::create_dir_all(&d).unwrap();
+        let d = scenes::temp_dir("loader-fuzz");
         std::fs::write(
             d.join("tri.obj"),
             "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nvn 0 0 1\nvn 0 0 1\nf 1//1 2//2 3//3\n",

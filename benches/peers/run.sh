@@ -181,8 +181,9 @@ mitsuba_run() { # KEY VARIANT INTEGRATOR ROUND [--avx2]
     # Kernels compiled for another target are cached apart from the host's.
     local cache=()
     [[ -n ${5:-} ]] && cache=("DRJIT_CACHE_DIR=$OUT/drjit-cache-avx2")
-    raw=$(env "${cache[@]}" "$PY" benches/peers/mitsuba_render.py "$OUT/mitsuba-scene/scene.xml" --variant "$2" --integrator "$3" \
-        --spp "$SPP" --width "$RES" --height "$RES" --threads "$THREADS" --repeat "$repeat" --out "$exr" ${5:-})
+    raw=$(env "${cache[@]}" "$PY" benches/peers/mitsuba_render.py "$OUT/mitsuba-scene/scene.xml" \
+        --variant "$2" --integrator "$3" --spp "$SPP" --width "$RES" --height "$RES" --threads "$THREADS" \
+        --repeat "$repeat" --out "$exr" ${5:-})
     local json
     json=$("$PY" - "$raw" "$1" <<'PYEOF'
 import json, sys

@@ -5,8 +5,8 @@
 # integrator at 128x128. About 12 minutes on a 2-core machine (11 min 47 s in
 # session 25).
 # The references have 4x the samples of session 8's: at today's speed the
-# integrators' 20 s runs reach errors the old references' own noise was
-# 30-70 % of.
+# integrators' 20 s runs reach errors the old references' own noise would
+# have been up to ~70 % of (11-64 % of session 8's errors).
 #
 #   sh docs/results/run-all.sh            # builds target/release/prism first
 #   PRISM=/path/to/prism sh docs/results/run-all.sh
