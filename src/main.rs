@@ -144,7 +144,8 @@ struct RenderArgs {
     #[arg(long, value_name = "SECONDS", conflicts_with = "strategies")]
     checkpoint_every: Option<f64>,
     /// Continue from a checkpoint (or a part's .state) of the same render:
-    /// the rest of the command must be the one that made it.
+    /// the same scene, integrator, seed, resolution, --max-depth and --mis,
+    /// holding its first samples; --spp may grow (docs/cluster.md).
     #[arg(long, value_name = "CHECKPOINT", conflicts_with = "strategies")]
     resume: Option<PathBuf>,
 }

@@ -75,6 +75,14 @@ const CASES: &[Case] = &[
         words: &["lights[0].radiance: the spectrum is not finite"],
     },
     Case {
+        id: "second-environment",
+        edits: &[("{\"type\": \"environment\", \"radiance\": 1.0}", "{\"type\": \"environment\", \"radiance\": 1.0},\n    {\"type\": \"environment\", \"radiance\": 0.5}")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:6:",
+        words: &["lights[1]: a second environment light (lights[0] is one)"],
+    },
+    Case {
         id: "spectrum-type",
         edits: &[("\"reflectance\": 0.5", "\"reflectance\": [0.5]")],
         args: &[],

@@ -880,6 +880,7 @@ fn include_gltf(
     ctx: &Ctx,
     b: &mut SceneBuilder,
     path: &[Seg],
+    name: &str,
     o: &ObjectSpec,
     g: &GltfSpec,
     ids: &BTreeMap<String, u32>,
@@ -898,8 +899,7 @@ fn include_gltf(
         Some(t) => ctx.transform(&with(path, "transform"), t)?,
         None => Affine3A::IDENTITY,
     };
-    let name = o.name.clone().unwrap_or_else(|| format!("object {}", path_string(path)));
-    super::gltf::include(b, &ctx.dir.join(&g.file), &name, transform, material, &overrides).map_err(|e| match e.key {
+    super::gltf::include(b, &ctx.dir.join(&g.file), name, transform, material, &overrides).map_err(|e| match e.key {
         Some(key) => ctx.err(&with(&with(&shape, "materials"), &key), e.message),
         None => ctx.err(&with(&shape, "file"), e.message),
     })
@@ -943,8 +943,9 @@ fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
 
     for (i, o) in f.objects.iter().enumerate() {
         let path = with_index(&[Seg::Key("objects".into())], i);
+        let name = o.name.clone().unwrap_or_else(|| format!("object {i}"));
         if let ShapeSpec::Gltf(g) = &o.shape {
-            include_gltf(ctx, &mut b, &path, o, g, &material_ids)?;
+            include_gltf(ctx, &mut b, &path, &name, o, g, &material_ids)?;
             continue;
         }
         let material = match &o.material {
@@ -964,10 +965,12 @@ fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
             Some(e) => Some((ctx.spectrum(&with(&path, "emission"), e, Use::Emission)?, o.two_sided)),
             None => None,
         };
-        let name = o.name.clone().unwrap_or_else(|| format!("object {i}"));
         b.mesh(&name, mesh, material, emission);
     }
 
+    // The environment is what every escaped ray sees, so a scene has one
+    // (as in Mitsuba); two would be half seen and fully sampled.
+    let mut environment = None;
     for (i, l) in f.lights.iter().enumerate() {
         let path = with_index(&[Seg::Key("lights".into())], i);
         match l {
@@ -977,6 +980,10 @@ fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
                 b.point_light(p.name.as_deref().unwrap_or("point light"), pos, intensity);
             }
             LightSpec::Environment(e) => {
+                if let Some(first) = environment.replace(i) {
+                    let message = format!("a second environment light (lights[{first}] is one): add their radiances into one");
+                    return Err(ctx.err(&path, message));
+                }
                 let le = ctx.spectrum(&with(&path, "radiance"), &e.radiance, Use::Emission)?;
                 b.environment(e.name.as_deref().unwrap_or("environment"), le);
             }
