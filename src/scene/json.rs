@@ -981,7 +981,8 @@ fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
             }
             LightSpec::Environment(e) => {
                 if let Some(first) = environment.replace(i) {
-                    let message = format!("a second environment light (lights[{first}] is one): add their radiances into one");
+                    let message =
+                        format!("a second environment light (lights[{first}] is one): add their radiances into one");
                     return Err(ctx.err(&path, message));
                 }
                 let le = ctx.spectrum(&with(&path, "radiance"), &e.radiance, Use::Emission)?;
