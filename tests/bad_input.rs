@@ -43,6 +43,14 @@ const CASES: &[Case] = &[
         words: &["EOF while parsing a value"],
     },
     Case {
+        id: "trailing-text",
+        edits: &[("1.0}]\n}", "1.0}]\n}\n}")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:7:1:",
+        words: &["trailing characters"],
+    },
+    Case {
         id: "nan-token",
         edits: &[("\"fov\": 40", "\"fov\": NaN")],
         args: &[],

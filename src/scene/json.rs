@@ -847,22 +847,23 @@ pub fn load_scene(path: &Path) -> Result<SceneBuilder, LoadError> {
 /// Builds a scene from JSON text; `file` names it in errors and `dir`
 /// resolves relative mesh paths.
 pub fn parse_scene(text: &str, file: &str, dir: &Path) -> Result<SceneBuilder, LoadError> {
+    let syntax = |field: String, e: serde_json::Error| LoadError {
+        file: file.to_string(),
+        // serde_json counts columns from 0 at the start of a line (e.g. at EOF there).
+        position: (e.line() > 0).then(|| (e.line(), e.column().max(1))),
+        field,
+        message: strip_position(&e.to_string()),
+    };
     let de = &mut serde_json::Deserializer::from_str(text);
-    let parsed: SceneFile = serde_path_to_error::deserialize(de).map_err(|e| {
+    let parsed: SceneFile = serde_path_to_error::deserialize(&mut *de).map_err(|e| {
         // serde_path_to_error writes `?` for a segment it could not name
         // (e.g. inside a syntax error); keep the part that is known.
         let field = e.path().to_string();
         let field = field.split(".?").next().unwrap_or_default().trim_end_matches('?').to_string();
-        let inner = e.into_inner();
-        let message = strip_position(&inner.to_string());
-        LoadError {
-            file: file.to_string(),
-            // serde_json counts columns from 0 at the start of a line (e.g. at EOF there).
-            position: (inner.line() > 0).then(|| (inner.line(), inner.column().max(1))),
-            field: if field == "." { String::new() } else { field },
-            message,
-        }
+        syntax(if field == "." { String::new() } else { field }, e.into_inner())
     })?;
+    // Nothing but white space may follow the scene's object.
+    de.end().map_err(|e| syntax(String::new(), e))?;
     let ctx = Ctx { file, text, dir, spectra: &parsed.spectra };
     build(&ctx, &parsed)
 }
