@@ -10,7 +10,7 @@ use prism::render::{
 };
 use prism::render_state::{fnv1a, Identity, RenderState};
 use prism::scene::{load_scene, Scene};
-use prism::stats::{pixel_mean_variance, render_pass_films};
+use prism::stats::{check_pass_memory, pixel_mean_variance, render_pass_films};
 use serde::Serialize;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
@@ -246,6 +246,7 @@ fn reference_command(a: ReferenceArgs) -> Result<()> {
         bail!("need --spp >= 1, --passes >= 2, and --width/--height multiples of --block");
     }
     Camera::check_resolution(a.width, a.height).map_err(|e| anyhow!("--width, --height: {e}"))?;
+    check_pass_memory(a.passes, a.width, a.height).map_err(|e| anyhow!("--passes: {e}"))?;
     check_threads(a.threads)?;
     let mut builder = load_scene(&a.scene)?;
     builder.set_resolution(a.width, a.height);
@@ -506,6 +507,7 @@ fn resume(path: &Path, identity: &Identity, range: &Range<u32>) -> Result<Film> 
 
 /// --passes: K independent renders, their mean and per-pixel variance.
 fn render_passes(a: &RenderArgs, s: &Setup, k: u32) -> Result<(Vec<[f32; 3]>, Sidecar, RenderStats)> {
+    check_pass_memory(k, s.identity.width, s.identity.height).map_err(|e| anyhow!("--passes: {e}"))?;
     let (films, stats) = render_pass_films(&s.scene, s.integrator.as_ref(), &s.opts, s.spp, k);
     let (mean, variance) = pixel_mean_variance(&films.iter().map(Film::image).collect::<Vec<_>>());
     let path = a.out.with_extension("var.exr");

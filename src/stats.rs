@@ -27,6 +27,30 @@ pub fn render_passes(
     render_pass_films(scene, integrator, &opts, spp, k).0.iter().map(Film::image).collect()
 }
 
+/// Refuses `k` passes of a `width` x `height` image that this machine could
+/// not hold: `render_pass_films` keeps every pass's film (48 bytes a pixel)
+/// and then its image (12) until the statistics are taken. (Without this, a
+/// mistyped `--passes` ends in an allocation failure's abort.)
+pub fn check_pass_memory(k: u32, width: u32, height: u32) -> Result<(), String> {
+    let bytes = k as f64 * width as f64 * height as f64 * 60.0;
+    match physical_memory() {
+        Some(total) if bytes > total as f64 => Err(format!(
+            "{k} passes of {width}x{height} pixels are held in memory together: {:.1} GB, more than this \
+             machine's {:.1} GB",
+            bytes / 1e9,
+            total as f64 / 1e9
+        )),
+        _ => Ok(()),
+    }
+}
+
+/// Physical memory in bytes (Linux's /proc/meminfo; None elsewhere).
+fn physical_memory() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let kb = info.lines().find_map(|l| l.strip_prefix("MemTotal:"))?.trim().strip_suffix("kB")?.trim().parse::<u64>();
+    kb.ok().map(|kb| kb * 1024)
+}
+
 /// `render_passes`, keeping each pass's film (with its dropped samples) and
 /// the render statistics summed over passes.
 pub fn render_pass_films(

@@ -417,6 +417,14 @@ const CASES: &[Case] = &[
         position: "",
         words: &["--threads 100000: at most 1024"],
     },
+    Case {
+        id: "passes-beyond-memory",
+        edits: &[],
+        args: &["--passes", "4294967295"],
+        out: "out.exr",
+        position: "",
+        words: &["--passes: 4294967295 passes of 8x8 pixels are held in memory together"],
+    },
 ];
 
 /// As the `to` of an edit: cut the text where `from` starts.

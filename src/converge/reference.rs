@@ -7,7 +7,8 @@ use crate::film::read_exr;
 use crate::integrators::{self, IntegratorOptions, MisHeuristic};
 use crate::reference::{make_reference, write_reference, ReferenceMeta};
 use crate::scene::Scene;
-use anyhow::{ensure, Context, Result};
+use crate::stats;
+use anyhow::{anyhow, ensure, Context, Result};
 use serde::Deserialize;
 use std::path::Path;
 
@@ -64,6 +65,7 @@ fn render_reference(
 ) -> Result<(Vec<[f32; 3]>, Origin)> {
     let ReferenceJob { integrator, spp, passes, out } = *job;
     let (w, h) = (scene.camera.width, scene.camera.height);
+    stats::check_pass_memory(passes, w, h).map_err(|e| anyhow!("--reference-passes: {e}"))?;
     // Both directories now, so that one that cannot be made stops
     // the run before the reference is rendered.
     for dir in out.parent().filter(|d| !d.as_os_str().is_empty()).into_iter().chain([cfg.out.as_path()]) {
