@@ -195,8 +195,15 @@ pub fn check_no_stale_state(out: &Path, how: &str) -> Result<()> {
 
 /// Fails unless `path` names an .exr file: `flag` is the option that gave it.
 pub fn ensure_exr(flag: &str, path: &Path) -> Result<()> {
-    if path.extension().and_then(|e| e.to_str()) != Some("exr") {
-        bail!("{flag} must name an .exr file, got {}", path.display());
+    ensure_extension(flag, path, "exr")
+}
+
+/// Refuses an output path without the extension `ext`: a slip of `--png`
+/// would otherwise write a PNG over, say, a scene's OBJ mesh.
+pub fn ensure_extension(flag: &str, path: &Path, ext: &str) -> Result<()> {
+    if path.extension().and_then(|e| e.to_str()) != Some(ext) {
+        let article = if ext.starts_with(['a', 'e', 'i', 'o', 'u']) { "an" } else { "a" };
+        bail!("{flag} must name {article} .{ext} file, got {}", path.display());
     }
     Ok(())
 }
@@ -230,41 +237,128 @@ pub fn check_outputs(inputs: &[(&str, &Path)], outputs: &[(&str, &Path)]) -> Res
     Ok(())
 }
 
-/// Writes through `write` to a temporary file beside `path`, flushes it to
-/// disk, then renames it into place and flushes the directory: whenever the
-/// process dies, `path` holds either its old or its complete new contents
-/// (what checkpoints rely on).
-pub fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
-    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let name = path.file_name().context("output path has no file name")?.to_string_lossy();
-    let ext = path.extension().map(|e| e.to_string_lossy().to_string()).unwrap_or_default();
-    let tmp = dir.join(format!(".{name}.{}.tmp.{ext}", std::process::id()));
-    let result = write(&tmp).and_then(|_| {
-        let sync = |p: &Path| std::fs::File::open(p).and_then(|f| f.sync_all());
-        sync(&tmp).with_context(|| format!("cannot flush {}", tmp.display()))?;
-        std::fs::rename(&tmp, path).with_context(|| format!("cannot move output into {}", path.display()))?;
-        sync(dir).with_context(|| format!("cannot flush directory {}", dir.display()))
-    });
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
+/// Output files written together: each to a temporary file beside its
+/// target, flushed to disk, and all moved into place by `commit` in the
+/// order they were staged, then their directories flushed. If writing any of
+/// them fails, no target has changed (the temporaries are removed, also when
+/// the set is dropped uncommitted); whenever the process dies, each target
+/// holds either its old or its complete new contents (what checkpoints rely
+/// on).
+#[derive(Default)]
+pub struct Outputs {
+    /// (temporary, target), in staging order.
+    staged: Vec<(PathBuf, PathBuf)>,
 }
 
-/// Writes an f32 RGB EXR (linear sRGB).
+impl Outputs {
+    /// Writes `path`'s new contents through `write` to its temporary file.
+    pub fn stage(&mut self, path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+        let dir = parent_dir(path);
+        let name = path.file_name().context("output path has no file name")?.to_string_lossy();
+        let ext = path.extension().map(|e| e.to_string_lossy().to_string()).unwrap_or_default();
+        let tmp = dir.join(format!(".{name}.{}.tmp.{ext}", std::process::id()));
+        // Listed first, so that a failed write's partial file is removed too.
+        self.staged.push((tmp.clone(), path.to_path_buf()));
+        write(&tmp)?;
+        sync(&tmp).with_context(|| format!("cannot flush {}", tmp.display()))
+    }
+
+    /// An f32 RGB EXR (linear sRGB).
+    pub fn exr(&mut self, path: &Path, width: u32, height: u32, image: &[[f32; 3]]) -> Result<()> {
+        use exr::prelude::*;
+        let channels = SpecificChannels::rgb(|Vec2(x, y): Vec2<usize>| {
+            let p = image[y * width as usize + x];
+            (p[0], p[1], p[2])
+        });
+        // The default's line order is "unspecified": the crate then writes its
+        // parallel-compressed blocks as they finish, so two writes of one image
+        // could differ in bytes. In increasing order it sorts them, and the file
+        // depends on the pixels alone.
+        let encoding = Encoding { line_order: LineOrder::Increasing, ..Encoding::FAST_LOSSLESS };
+        let exr = Image::from_encoded_channels((width as usize, height as usize), encoding, channels);
+        self.stage(path, |tmp| exr.write().to_file(tmp).with_context(|| format!("cannot write {}", path.display())))
+    }
+
+    /// An 8-bit sRGB PNG preview: linear values times 2^exposure, sRGB
+    /// transfer curve, clamped. Encoded in memory, so that a failed write
+    /// is reported (the image crate's file writer drops its last flush's
+    /// error, and left an empty file on a full disk).
+    pub fn png(&mut self, path: &Path, width: u32, height: u32, image: &[[f32; 3]], exposure: f32) -> Result<()> {
+        let scale = 2f32.powf(exposure);
+        let mut buf = image::RgbImage::new(width, height);
+        for (i, p) in image.iter().enumerate() {
+            let px = p.map(|c| (srgb_encode(c * scale) * 255.0 + 0.5) as u8);
+            buf.put_pixel(i as u32 % width, i as u32 / width, image::Rgb(px));
+        }
+        self.bytes(path, &encode_png(&image::DynamicImage::ImageRgb8(buf))?)
+    }
+
+    /// A JSON document.
+    pub fn json<T: Serialize>(&mut self, path: &Path, value: &T) -> Result<()> {
+        self.bytes(path, (serde_json::to_string_pretty(value)? + "\n").as_bytes())
+    }
+
+    pub fn bytes(&mut self, path: &Path, bytes: &[u8]) -> Result<()> {
+        self.stage(path, |tmp| std::fs::write(tmp, bytes).with_context(|| format!("cannot write {}", path.display())))
+    }
+
+    /// Moves every staged file into place, then flushes their directories.
+    pub fn commit(mut self) -> Result<()> {
+        let staged = std::mem::take(&mut self.staged);
+        let mut dirs: Vec<&Path> = Vec::new();
+        for (i, (tmp, path)) in staged.iter().enumerate() {
+            if let Err(e) = std::fs::rename(tmp, path) {
+                // The rest are removed when `self` drops.
+                self.staged = staged[i..].to_vec();
+                return Err(e).with_context(|| format!("cannot move output into {}", path.display()));
+            }
+            let dir = parent_dir(path);
+            if !dirs.contains(&dir) {
+                dirs.push(dir);
+            }
+        }
+        for dir in dirs {
+            sync(dir).with_context(|| format!("cannot flush directory {}", dir.display()))?;
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Outputs {
+    fn drop(&mut self) {
+        for (tmp, _) in &self.staged {
+            let _ = std::fs::remove_file(tmp);
+        }
+    }
+}
+
+fn parent_dir(path: &Path) -> &Path {
+    path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."))
+}
+
+fn sync(path: &Path) -> std::io::Result<()> {
+    std::fs::File::open(path).and_then(|f| f.sync_all())
+}
+
+/// An image as PNG bytes.
+pub fn encode_png(image: &image::DynamicImage) -> Result<Vec<u8>> {
+    let mut png = Vec::new();
+    image.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png).context("cannot encode PNG")?;
+    Ok(png)
+}
+
+/// One output written on its own (`Outputs`).
+pub fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+    let mut out = Outputs::default();
+    out.stage(path, write)?;
+    out.commit()
+}
+
+/// Writes an f32 RGB EXR (linear sRGB) on its own.
 pub fn write_exr(path: &Path, width: u32, height: u32, image: &[[f32; 3]]) -> Result<()> {
-    use exr::prelude::*;
-    let channels = SpecificChannels::rgb(|Vec2(x, y): Vec2<usize>| {
-        let p = image[y * width as usize + x];
-        (p[0], p[1], p[2])
-    });
-    // The default's line order is "unspecified": the crate then writes its
-    // parallel-compressed blocks as they finish, so two writes of one image
-    // could differ in bytes. In increasing order it sorts them, and the file
-    // depends on the pixels alone.
-    let encoding = Encoding { line_order: LineOrder::Increasing, ..Encoding::FAST_LOSSLESS };
-    let exr = Image::from_encoded_channels((width as usize, height as usize), encoding, channels);
-    write_atomically(path, |tmp| exr.write().to_file(tmp).with_context(|| format!("cannot write {}", path.display())))
+    let mut out = Outputs::default();
+    out.exr(path, width, height, image)?;
+    out.commit()
 }
 
 /// Reads an RGB EXR into (width, height, pixels).
@@ -284,20 +378,6 @@ pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<[f32; 3]>)> {
     Ok((size.width() as u32, size.height() as u32, px))
 }
 
-/// Writes an 8-bit sRGB PNG preview: linear values times 2^exposure, sRGB
-/// transfer curve, clamped.
-pub fn write_png(path: &Path, width: u32, height: u32, image: &[[f32; 3]], exposure: f32) -> Result<()> {
-    let scale = 2f32.powf(exposure);
-    let mut buf = image::RgbImage::new(width, height);
-    for (i, p) in image.iter().enumerate() {
-        let px = p.map(|c| (srgb_encode(c * scale) * 255.0 + 0.5) as u8);
-        buf.put_pixel(i as u32 % width, i as u32 / width, image::Rgb(px));
-    }
-    write_atomically(path, |tmp| {
-        buf.save_with_format(tmp, image::ImageFormat::Png).with_context(|| format!("cannot write {}", path.display()))
-    })
-}
-
 fn srgb_encode(c: f32) -> f32 {
     let c = if c.is_finite() { c.clamp(0.0, 1.0) } else { 0.0 };
     if c <= 0.003_130_8 {
@@ -307,14 +387,18 @@ fn srgb_encode(c: f32) -> f32 {
     }
 }
 
-/// Writes a JSON document atomically.
+/// Writes a JSON document on its own.
 pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
-    write_bytes(path, (serde_json::to_string_pretty(value)? + "\n").as_bytes())
+    let mut out = Outputs::default();
+    out.json(path, value)?;
+    out.commit()
 }
 
-/// Writes `bytes` to `path` atomically (`write_atomically`).
+/// Writes `bytes` to `path` on its own.
 pub fn write_bytes(path: &Path, bytes: &[u8]) -> Result<()> {
-    write_atomically(path, |tmp| std::fs::write(tmp, bytes).with_context(|| format!("cannot write {}", path.display())))
+    let mut out = Outputs::default();
+    out.bytes(path, bytes)?;
+    out.commit()
 }
 
 #[cfg(test)]
@@ -344,6 +428,42 @@ mod tests {
             assert_eq!(bytes, *first.get_or_insert_with(|| bytes.clone()), "two writes of one image differ");
         }
         assert_eq!(read_exr(&path).unwrap(), (w, h, image));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A set of outputs whose last write fails changes none of its targets
+    /// and leaves no temporary file; committed, every target holds its new
+    /// contents. (The control: the same first file written on its own is
+    /// replaced, so the check of the old contents can fail.)
+    #[test]
+    fn outputs_change_no_target_unless_all_are_written() {
+        let dir = std::env::temp_dir().join(format!("prism-outputs-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let (a, b) = (dir.join("a.json"), dir.join("b.bin"));
+        std::fs::write(&a, "old a").unwrap();
+        std::fs::write(&b, "old b").unwrap();
+        let mut out = Outputs::default();
+        out.bytes(&a, b"new a").unwrap();
+        let failed = out.stage(&b, |tmp| {
+            std::fs::write(tmp, "half of b").unwrap();
+            bail!("disk full")
+        });
+        assert!(failed.is_err());
+        drop(out);
+        assert_eq!(std::fs::read_to_string(&a).unwrap(), "old a");
+        assert_eq!(std::fs::read_to_string(&b).unwrap(), "old b");
+        let mut out = Outputs::default();
+        out.bytes(&a, b"new a").unwrap();
+        out.bytes(&b, b"new b").unwrap();
+        out.commit().unwrap();
+        assert_eq!(std::fs::read_to_string(&a).unwrap(), "new a");
+        assert_eq!(std::fs::read_to_string(&b).unwrap(), "new b");
+        write_bytes(&a, b"alone").unwrap();
+        assert_eq!(std::fs::read_to_string(&a).unwrap(), "alone");
+        let mut names: Vec<String> =
+            std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into()).collect();
+        names.sort();
+        assert_eq!(names, ["a.json", "b.bin"], "no temporary file is left");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

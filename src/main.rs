@@ -3,7 +3,9 @@
 use anyhow::{anyhow, bail, ensure, Context, Result};
 use clap::{Parser, Subcommand};
 use prism::camera::Camera;
-use prism::film::{self, check_no_stale_state, check_outputs, check_writable, ensure_exr, DroppedSamples, Film};
+use prism::film::{
+    self, check_no_stale_state, check_outputs, check_writable, ensure_exr, DroppedSamples, Film, Outputs,
+};
 use prism::integrators::{self, Integrator, IntegratorOptions, MisHeuristic, INTEGRATORS};
 use prism::render::{
     check_threads, render_chunked, render_with_strategies, RenderOptions, RenderStats, StrategyImages,
@@ -350,6 +352,9 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
         builder.set_resolution(w, h);
     }
     ensure_exr("--out", &a.out)?;
+    if let Some(png) = &a.png {
+        film::ensure_extension("--png", png, "png")?;
+    }
     if !writes_state(a) {
         check_no_stale_state(&a.out, ", or render the part with --sample-range A..B")?;
     }
@@ -424,15 +429,17 @@ fn render_command(a: RenderArgs) -> Result<()> {
     for w in s.integrator.unsamplable(&s.scene) {
         eprintln!("warning: {w}");
     }
+    // Every file this render writes, moved into place together at the end.
+    let mut out = Outputs::default();
     let (image, mut sidecar, stats) = match (a.passes, &a.strategies) {
-        (Some(k), _) => render_passes(&a, &s, k)?,
-        (None, Some(dir)) => render_strategies(&s, dir)?,
-        (None, None) => render_samples(&a, &s)?,
+        (Some(k), _) => render_passes(&a, &s, k, &mut out)?,
+        (None, Some(dir)) => render_strategies(&s, dir, &mut out)?,
+        (None, None) => render_samples(&a, &s, &mut out)?,
     };
     let (w, h) = (s.identity.width, s.identity.height);
-    film::write_exr(&a.out, w, h, &image)?;
+    out.exr(&a.out, w, h, &image)?;
     if let Some(png) = &a.png {
-        film::write_png(png, w, h, &image, a.exposure)?;
+        out.png(png, w, h, &image, a.exposure)?;
     }
     let secs = stats.wall.as_secs_f64();
     let per_second = |x: f64| if secs > 0.0 { x / secs } else { 0.0 };
@@ -443,7 +450,8 @@ fn render_command(a: RenderArgs) -> Result<()> {
         rays: stats.rays,
         mrays_per_second: per_second(stats.rays as f64) / 1e6,
     });
-    film::write_json(&a.out.with_extension("json"), &sidecar)?;
+    out.json(&a.out.with_extension("json"), &sidecar)?;
+    out.commit()?;
     let checkpoint = a.out.with_extension("ckpt");
     if a.checkpoint_every.is_some() || a.resume.as_ref() == Some(&checkpoint) {
         // The outputs are complete: this render's checkpoint has done its job.
@@ -462,7 +470,7 @@ fn render_command(a: RenderArgs) -> Result<()> {
 
 /// Renders sample indices 0..spp, or --sample-range, possibly resumed from a
 /// checkpoint and checkpointed on the way.
-fn render_samples(a: &RenderArgs, s: &Setup) -> Result<(Vec<[f32; 3]>, Sidecar, RenderStats)> {
+fn render_samples(a: &RenderArgs, s: &Setup, out: &mut Outputs) -> Result<(Vec<[f32; 3]>, Sidecar, RenderStats)> {
     let range = a.sample_range.clone().unwrap_or(0..s.spp);
     let mut film = match &a.resume {
         Some(path) => resume(path, &s.identity, &range)?,
@@ -483,8 +491,9 @@ fn render_samples(a: &RenderArgs, s: &Setup) -> Result<(Vec<[f32; 3]>, Sidecar, 
     })?;
     let mut sidecar = Sidecar::new(s.identity.clone(), film.spp, std::slice::from_ref(&range), film.dropped);
     if writes_state(a) {
+        // Staged before the image: see `merge_command`.
         let path = a.out.with_extension("state");
-        RenderState::save(&path, &s.identity, std::slice::from_ref(&range), &film)?;
+        out.bytes(&path, &RenderState::encode(&s.identity, std::slice::from_ref(&range), &film)?)?;
         sidecar.state = Some(file_name(&path));
     }
     Ok((film.image(), sidecar, stats))
@@ -506,12 +515,17 @@ fn resume(path: &Path, identity: &Identity, range: &Range<u32>) -> Result<Film> 
 }
 
 /// --passes: K independent renders, their mean and per-pixel variance.
-fn render_passes(a: &RenderArgs, s: &Setup, k: u32) -> Result<(Vec<[f32; 3]>, Sidecar, RenderStats)> {
+fn render_passes(
+    a: &RenderArgs,
+    s: &Setup,
+    k: u32,
+    out: &mut Outputs,
+) -> Result<(Vec<[f32; 3]>, Sidecar, RenderStats)> {
     check_pass_memory(k, s.identity.width, s.identity.height).map_err(|e| anyhow!("--passes: {e}"))?;
     let (films, stats) = render_pass_films(&s.scene, s.integrator.as_ref(), &s.opts, s.spp, k);
     let (mean, variance) = pixel_mean_variance(&films.iter().map(Film::image).collect::<Vec<_>>());
     let path = a.out.with_extension("var.exr");
-    film::write_exr(&path, s.identity.width, s.identity.height, &variance)?;
+    out.exr(&path, s.identity.width, s.identity.height, &variance)?;
     let mut dropped = DroppedSamples::default();
     films.iter().for_each(|f| dropped.merge(&f.dropped));
     let mut sidecar = Sidecar::new(s.identity.clone(), s.spp as u64, std::slice::from_ref(&(0..s.spp)), dropped);
@@ -521,12 +535,12 @@ fn render_passes(a: &RenderArgs, s: &Setup, k: u32) -> Result<(Vec<[f32; 3]>, Si
 }
 
 /// --strategies: the image plus one image per BDPT strategy.
-fn render_strategies(s: &Setup, dir: &Path) -> Result<(Vec<[f32; 3]>, Sidecar, RenderStats)> {
+fn render_strategies(s: &Setup, dir: &Path, out: &mut Outputs) -> Result<(Vec<[f32; 3]>, Sidecar, RenderStats)> {
     let mut film = Film::new(s.identity.width, s.identity.height);
     let mut images = StrategyImages::new(film.width, film.height);
     let stats = render_with_strategies(&s.scene, s.integrator.as_ref(), &s.opts, &mut film, 0..s.spp, &mut images);
-    let written = images.write_exrs(dir)?;
-    eprintln!("wrote {} per-strategy images to {}", written.len(), dir.display());
+    let staged = images.stage_exrs(dir, out)?;
+    eprintln!("{staged} per-strategy images for {}", dir.display());
     let sidecar = Sidecar::new(s.identity.clone(), film.spp, std::slice::from_ref(&(0..s.spp)), film.dropped);
     Ok((film.image(), sidecar, stats))
 }
@@ -548,11 +562,13 @@ fn merge_command(out: &Path, parts: &[PathBuf]) -> Result<()> {
     // The state first, as a render writes it: it is what `merge` reads, and
     // if the process dies in between, a new state beside an old image is
     // merged correctly where the reverse would be merged stale.
-    RenderState::save(&state, id, &merged.sample_ranges, film)?;
-    film::write_exr(out, id.width, id.height, &film.image())?;
+    let mut outputs = Outputs::default();
+    outputs.bytes(&state, &RenderState::encode(id, &merged.sample_ranges, film)?)?;
+    outputs.exr(out, id.width, id.height, &film.image())?;
     let mut meta = Sidecar::new(id.clone(), film.spp, &merged.sample_ranges, film.dropped);
     meta.state = Some(file_name(&state));
-    film::write_json(&sidecar, &meta)?;
+    outputs.json(&sidecar, &meta)?;
+    outputs.commit()?;
     eprintln!("merged {} parts: {} spp (samples {:?})", parts.len(), film.spp, merged.sample_ranges);
     warn_dropped(&film.dropped);
     Ok(())

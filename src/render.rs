@@ -20,7 +20,7 @@
 //! integrator's check costs one branch.
 
 use crate::accel::LANES;
-use crate::film::{add_fixed, to_fixed, write_exr, DroppedSamples, Film};
+use crate::film::{add_fixed, to_fixed, DroppedSamples, Film, Outputs};
 use crate::integrators::Integrator;
 use crate::sampling::Sampler;
 use crate::scene::Scene;
@@ -30,7 +30,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use rayon::ThreadPool;
 use std::collections::BTreeMap;
 use std::ops::Range;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::{Condvar, Mutex};
 use std::time::{Duration, Instant};
 
@@ -107,19 +107,17 @@ impl StrategyImages {
         Some(b.iter().map(|p| p.map(|c| (c * inv) as f32)).collect())
     }
 
-    /// Writes `s<s>_t<t>_weighted.exr` and `s<s>_t<t>_unweighted.exr` for
-    /// every strategy into `dir`; returns the files written.
-    pub fn write_exrs(&self, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
-        let mut written = Vec::new();
+    /// Stages `s<s>_t<t>_weighted.exr` and `s<s>_t<t>_unweighted.exr` for
+    /// every strategy in `dir`; returns how many.
+    pub fn stage_exrs(&self, dir: &Path, out: &mut Outputs) -> anyhow::Result<usize> {
         for &(s, t) in self.sums.keys() {
             for (weighted, name) in [(true, "weighted"), (false, "unweighted")] {
                 let path = dir.join(format!("s{s}_t{t}_{name}.exr"));
                 let image = self.image(s, t, weighted).expect("strategy present");
-                write_exr(&path, self.width, self.height, &image)?;
-                written.push(path);
+                out.exr(&path, self.width, self.height, &image)?;
             }
         }
-        Ok(written)
+        Ok(2 * self.sums.len())
     }
 }
 

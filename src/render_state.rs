@@ -19,7 +19,7 @@
 //! Loading checks all of it, so a truncated, corrupt or foreign file is a
 //! clear error rather than a wrong image.
 
-use crate::film::{write_atomically, DroppedSamples, Film};
+use crate::film::{write_bytes, DroppedSamples, Film};
 use anyhow::{bail, ensure, Context, Result};
 use serde::{Deserialize, Serialize};
 use std::ops::Range;
@@ -116,6 +116,11 @@ impl RenderState {
     /// Writes a state durably (temporary file, fsync, rename). It takes the
     /// parts, not a `RenderState`: a render in progress owns its film apart.
     pub fn save(path: &Path, identity: &Identity, sample_ranges: &[Range<u32>], film: &Film) -> Result<()> {
+        write_bytes(path, &Self::encode(identity, sample_ranges, film)?)
+    }
+
+    /// A state file's bytes (the layout above).
+    pub fn encode(identity: &Identity, sample_ranges: &[Range<u32>], film: &Film) -> Result<Vec<u8>> {
         let header = Header {
             identity: identity.clone(),
             sample_ranges: sample_ranges.iter().map(|r| [r.start, r.end]).collect(),
@@ -131,9 +136,7 @@ impl RenderState {
             bytes.extend_from_slice(&c.to_le_bytes());
         }
         bytes.extend_from_slice(&fnv1a(&bytes).to_le_bytes());
-        write_atomically(path, |tmp| {
-            std::fs::write(tmp, &bytes).with_context(|| format!("cannot write {}", tmp.display()))
-        })
+        Ok(bytes)
     }
 
     /// Reads and validates a state file; errors name the file and the fault.

@@ -404,10 +404,18 @@ const CASES: &[Case] = &[
     Case {
         id: "output-replaces-checkpoint",
         edits: &[],
-        args: &["--resume", "{dir}/part.state", "--png", "{dir}/part.state"],
+        args: &["--resume", "{dir}/part.png", "--png", "{dir}/part.png"],
         out: "out.exr",
         position: "",
         words: &["--png", "would replace the checkpoint (--resume)"],
+    },
+    Case {
+        id: "png-extension",
+        edits: &[],
+        args: &["--png", "{dir}/mesh.obj"],
+        out: "out.exr",
+        position: "",
+        words: &["--png must name a .png file, got", "mesh.obj"],
     },
     Case {
         id: "too-many-threads",

@@ -143,8 +143,8 @@ fn integrators_are_listed() {
 }
 
 /// No output may replace an input or another output: `render s.json --out
-/// s.exr` would write its sidecar over the scene; `--png` may not be `--out`
-/// or the sidecar; a merge's state may not be a part's; `reference` writes
+/// s.exr` would write its sidecar over the scene; `--png` must name a .png
+/// (so neither `--out` nor the sidecar); a merge's state may not be a part's; `reference` writes
 /// a sidecar too. Each is one error, and the inputs are untouched.
 #[test]
 fn outputs_never_replace_the_scene_or_each_other() {
@@ -165,7 +165,7 @@ fn outputs_never_replace_the_scene_or_each_other() {
     fails_with(render(&["--out", &path("s.exr")]), "its sidecar");
     fails_with(render(&["--out", &path("sub/../s.exr")]), "would replace the scene");
     fails_with(render(&["--out", &path("a.exr"), "--png", &path("a.exr")]), "--png");
-    fails_with(render(&["--out", &path("a.exr"), "--png", &path("a.json")]), "are the same file");
+    fails_with(render(&["--out", &path("a.exr"), "--png", &path("a.json")]), "--png must name a .png file");
     fails_with(
         prism(&[
             "reference",

@@ -4,8 +4,8 @@
 use super::chart::{chart_svg, svg_to_png, Axis};
 use super::images::{auto_exposure, compose, error_range, false_colour, pixel_errors, tonemap};
 use super::{ConvergeConfig, ConvergeResults};
-use crate::film::{write_atomically, write_bytes, write_json};
-use anyhow::{Context, Result};
+use crate::film::{encode_png, write_bytes, write_json};
+use anyhow::Result;
 use image::RgbImage;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -52,13 +52,13 @@ pub(super) fn write_outputs(
     write_text(&dir.join("report.md"), &report_md(r))
 }
 
-/// Each output appears whole or not at all (`write_atomically`).
+/// Each output appears whole or not at all (`film::Outputs`).
 fn write_text(path: &Path, text: &str) -> Result<()> {
     write_bytes(path, text.as_bytes())
 }
 
 fn write_png(path: &Path, image: &RgbImage) -> Result<()> {
-    write_atomically(path, |tmp| image.save(tmp).with_context(|| format!("cannot write {}", path.display())))
+    write_bytes(path, &encode_png(&image::DynamicImage::ImageRgb8(image.clone()))?)
 }
 
 /// One row per checkpoint: `integrator,spp,seconds,cpu_seconds,rel_mse,mse,mae,by_spp`
