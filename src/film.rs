@@ -361,6 +361,17 @@ pub fn write_exr(path: &Path, width: u32, height: u32, image: &[[f32; 3]]) -> Re
     out.commit()
 }
 
+/// Refuses an image read from `path` (`width` pixels a row) with a NaN or
+/// infinite pixel, against which no error can be measured.
+pub fn ensure_finite(path: &Path, width: u32, pixels: &[[f32; 3]]) -> Result<()> {
+    let bad = pixels.iter().filter(|p| !p.iter().all(|c| c.is_finite())).count();
+    if let Some(i) = pixels.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+        let (x, y) = (i % width as usize, i / width as usize);
+        bail!("{}: {bad} pixels are not finite (the first at x {x}, y {y}): no error can be measured", path.display());
+    }
+    Ok(())
+}
+
 /// Reads an RGB EXR into (width, height, pixels).
 pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<[f32; 3]>)> {
     use exr::prelude::*;

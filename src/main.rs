@@ -281,16 +281,8 @@ fn reference_command(a: ReferenceArgs) -> Result<()> {
 fn compare_command(image: &Path, reference: &Path) -> Result<()> {
     let (w, h, a) = film::read_exr(image)?;
     let (rw, rh, b) = film::read_exr(reference)?;
-    for (path, pixels, width) in [(image, &a, w), (reference, &b, rw)] {
-        let bad = pixels.iter().filter(|p| !p.iter().all(|c| c.is_finite())).count();
-        if let Some(i) = pixels.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
-            let (x, y) = (i % width as usize, i / width as usize);
-            bail!(
-                "{}: {bad} pixels are not finite (the first at x {x}, y {y}): no error can be measured",
-                path.display()
-            );
-        }
-    }
+    film::ensure_finite(image, w, &a)?;
+    film::ensure_finite(reference, rw, &b)?;
     if (w, h) != (rw, rh) {
         bail!("{} is {w}x{h} but {} is {rw}x{rh}", image.display(), reference.display());
     }

@@ -51,6 +51,14 @@ const CASES: &[Case] = &[
         words: &["trailing characters"],
     },
     Case {
+        id: "zero-height",
+        edits: &[("\"height\": 8", "\"height\": 0")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:2:93:",
+        words: &["camera.height: width and height must be at least 1"],
+    },
+    Case {
         id: "nan-token",
         edits: &[("\"fov\": 40", "\"fov\": NaN")],
         args: &[],

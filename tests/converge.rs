@@ -303,7 +303,8 @@ fn bad_arguments_fail_clearly() {
 
 /// More arguments refused before anything is rendered or created: the same
 /// estimator twice under two labels, a reference written under a non-EXR
-/// name, an exposure whose 2^stops overflows, a reference of another size
+/// name, an exposure whose 2^stops overflows, a reference with a NaN pixel
+/// (no error can be measured against it), a reference of another size
 /// (no empty output directory left), and a directory where an output goes
 /// (refused before rendering, not after with half the outputs written).
 #[test]
@@ -314,6 +315,11 @@ fn more_bad_arguments_fail_before_rendering() {
     let exact = white_room_reference(&d, 8);
     let exact = exact.to_str().unwrap();
     let reference_png = d.join("r.png").display().to_string();
+    let mut nan = vec![[0.5f32; 3]; 64];
+    nan[9][1] = f32::NAN;
+    let nan_reference = d.join("nan.exr");
+    write_exr(&nan_reference, 8, 8, &nan).unwrap();
+    let nan_reference = nan_reference.to_str().unwrap();
     let run = |extra: &[&str]| {
         let mut args = vec!["converge", "scenes/white-room.json", "--spp", "2", "--height", "8"];
         args.extend_from_slice(extra);
@@ -322,8 +328,9 @@ fn more_bad_arguments_fail_before_rendering() {
         }
         prism(&args)
     };
-    let cases: [(&[&str], &str); 4] = [
+    let cases: [(&[&str], &str); 5] = [
         (&["--integrators", "bdpt,bdpt:power", "--reference", exact, "--out", o], "are the same estimator"),
+        (&["--reference", nan_reference, "--out", o], "1 pixels are not finite (the first at x 1, y 1)"),
         (&["--reference-spp", "2", "--reference-out", &reference_png, "--out", o], "--reference-out must name an .exr"),
         (&["--reference", exact, "--exposure", "130", "--out", o], "--exposure must be a number of stops"),
         (&["--reference", exact, "--width", "16", "--out", o], "but the run renders 16x8"),

@@ -3,7 +3,7 @@
 //! its origin and its own noise.
 
 use super::{spinner, ConvergeConfig, ReferenceInfo, ReferenceSource, REFERENCE_SEED_OFFSET};
-use crate::film::read_exr;
+use crate::film::{ensure_finite, read_exr};
 use crate::integrators::{self, IntegratorOptions, MisHeuristic};
 use crate::reference::{make_reference, write_reference, ReferenceMeta};
 use crate::scene::Scene;
@@ -23,14 +23,18 @@ pub(super) fn obtain_reference(
     let (w, h) = (scene.camera.width, scene.camera.height);
     let (image, origin, path, here) = match &cfg.reference {
         ReferenceSource::File(path) => {
-            if path.with_extension("json").exists() {
+            let (image, origin) = if path.with_extension("json").exists() {
                 let (image, origin) = read_any_reference(path)?;
-                (image, Some(origin), path.clone(), false)
+                (image, Some(origin))
             } else {
                 let (rw, rh, image) = read_exr(path)?;
                 ensure!((rw, rh) == (w, h), "{} is {rw}x{rh} but the run renders {w}x{h}", path.display());
-                (image, None, path.clone(), false)
-            }
+                (image, None)
+            };
+            // (A rendered reference's pixels are finite: the film keeps
+            // other samples out.)
+            ensure_finite(path, w, &image)?;
+            (image, origin, path.clone(), false)
         }
         ReferenceSource::Render { integrator, spp, passes, out } => {
             let job = ReferenceJob { integrator, spp: *spp, passes: *passes, out };

@@ -924,7 +924,9 @@ fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
         return Err(ctx.err(&with(&cam_path, "fov"), "fov must be between 0 and 180 degrees"));
     }
     if let Err(e) = Camera::check_resolution(c.width, c.height) {
-        return Err(ctx.err(&with(&cam_path, "width"), e));
+        // The field at fault: a zero height, else the width.
+        let field = if c.height == 0 && c.width != 0 { "height" } else { "width" };
+        return Err(ctx.err(&with(&cam_path, field), e));
     }
     if Camera::frame(look_at.as_dvec3() - position.as_dvec3(), up.as_dvec3()).is_none() {
         return Err(ctx.err(&with(&cam_path, "look_at"), "look_at must differ from position and not be parallel to up"));
