@@ -124,9 +124,9 @@ struct RenderArgs {
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
-    /// MIS heuristic of bdpt: power, balance or uniform.
-    #[arg(long, default_value = "power")]
-    mis: MisHeuristic,
+    /// MIS heuristic of bdpt: power (the default), balance or uniform.
+    #[arg(long)]
+    mis: Option<MisHeuristic>,
     /// Also write one EXR per BDPT strategy (s, t), weighted and unweighted,
     /// into this directory (created if missing; bdpt only).
     #[arg(long, value_name = "DIR")]
@@ -330,8 +330,13 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
     check_threads(a.threads)?;
     let seed = a.seed.or(defaults.seed).unwrap_or(0);
     let max_depth = a.max_depth.or(defaults.max_depth).unwrap_or(IntegratorOptions::default().max_depth);
-    let integrator =
-        integrators::create(&name, &IntegratorOptions { max_depth, mis: a.mis }).map_err(anyhow::Error::msg)?;
+    if a.mis.is_some() && !integrators::reads_mis(&name) {
+        // Not an error: a script may pass one --mis to every integrator, and
+        // such parts still merge (the sidecar records the default).
+        eprintln!("warning: --mis sets bdpt's heuristic; {name} reads none and ignores it");
+    }
+    let mis = a.mis.unwrap_or_default();
+    let integrator = integrators::create(&name, &IntegratorOptions { max_depth, mis }).map_err(anyhow::Error::msg)?;
     if a.strategies.is_some() && name != "bdpt" {
         bail!("--strategies needs --integrator bdpt (got {name})");
     }
@@ -366,7 +371,7 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
     }
     let scene_bytes = std::fs::read(&a.scene).with_context(|| format!("cannot read {}", a.scene.display()))?;
     let scene = builder.build();
-    let mis = integrators::effective_mis(&name, a.mis);
+    let mis = integrators::effective_mis(&name, a.mis.unwrap_or_default());
     let identity = Identity {
         scene: a.scene.display().to_string(),
         scene_hash: format!("{:016x}", fnv1a(&scene_bytes)),

@@ -198,8 +198,8 @@ fn outputs_never_replace_the_scene_or_each_other() {
 /// `--spp`) writes its state again, so `merge` sees every sample the grown
 /// part's image holds (it used to keep the old state: 4 of 16 samples); so
 /// does one resumed from a checkpoint (same format as a state: a copy
-/// stands in for a killed render's); and `--mis`, which path ignores, does
-/// not stop its parts from merging.
+/// stands in for a killed render's); and `--mis`, which path ignores (with
+/// a warning), does not stop its parts from merging.
 #[test]
 fn grown_parts_and_ignored_options_merge() {
     let d = temp_dir("grow");
@@ -216,7 +216,24 @@ fn grown_parts_and_ignored_options_merge() {
     std::fs::copy(d.join("p0.state"), d.join("p0.ckpt")).unwrap();
     render(&["--spp", "3", "--resume", &path("p0.ckpt"), "--checkpoint-every", "100", "--out", &path("p0.exr")]);
     assert!(!d.join("p0.ckpt").exists(), "the finished render kept its checkpoint");
-    render(&["--sample-range", "3..5", "--mis", "balance", "--out", &path("p1.exr")]);
+    let o = prism(&[
+        "render",
+        &scene,
+        "--threads",
+        "1",
+        "--quiet",
+        "--sample-range",
+        "3..5",
+        "--mis",
+        "balance",
+        "--out",
+        &path("p1.exr"),
+    ]);
+    assert!(
+        o.status.success() && stderr(&o).contains("warning: --mis sets bdpt's heuristic; path reads none"),
+        "{}",
+        stderr(&o)
+    );
     let o = prism(&["merge", &path("all.exr"), &path("p0.exr"), &path("p1.exr")]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("5 spp (samples [0..5])"), "{}", stderr(&o));
