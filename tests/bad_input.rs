@@ -59,6 +59,22 @@ const CASES: &[Case] = &[
         words: &["camera.height: width and height must be at least 1"],
     },
     Case {
+        id: "unused-spectrum",
+        edits: &[("  \"materials\"", "  \"spectra\": {\"x\": -1},\n  \"materials\"")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:3:20:",
+        words: &["spectra.x: a spectrum value must be a finite number >= 0, got -1"],
+    },
+    Case {
+        id: "negative-wavelengths",
+        edits: &[("\"reflectance\": 0.5", "\"reflectance\": {\"wavelengths\": [-500, -400], \"values\": [0.5, 0.2]}")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:3:61:",
+        words: &["materials.white.reflectance: \"wavelengths\" are in nanometres, all above 0"],
+    },
+    Case {
         id: "nan-token",
         edits: &[("\"fov\": 40", "\"fov\": NaN")],
         args: &[],

@@ -602,6 +602,9 @@ impl Ctx<'_> {
         if w.windows(2).any(|p| p[1] <= p[0]) {
             return Err(self.err(path, "\"wavelengths\" must increase strictly"));
         }
+        if w[0] <= 0.0 {
+            return Err(self.err(path, "\"wavelengths\" are in nanometres, all above 0"));
+        }
         if v.iter().any(|&x| x < 0.0) {
             return Err(self.err(path, "spectrum values must be >= 0"));
         }
@@ -922,6 +925,14 @@ fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
     let up = ctx.vec3(&with(&cam_path, "up"), c.up)?;
     if !(c.fov.is_finite() && c.fov > 0.0 && c.fov < 180.0) {
         return Err(ctx.err(&with(&cam_path, "fov"), "fov must be between 0 and 180 degrees"));
+    }
+    // Every entry of `spectra` is checked, used or not, as far as its form
+    // allows without knowing its use (names and rgb depend on it; they are
+    // checked where used).
+    for (name, spec) in &f.spectra {
+        if !matches!(spec, SpectrumSpec::Name(_) | SpectrumSpec::Rgb(..)) {
+            ctx.spectrum(&[Seg::Key("spectra".into()), Seg::Key(name.clone())], spec, Use::Other)?;
+        }
     }
     if let Err(e) = Camera::check_resolution(c.width, c.height) {
         // The field at fault: a zero height, else the width.
