@@ -75,6 +75,14 @@ const CASES: &[Case] = &[
         words: &["materials.white.reflectance: \"wavelengths\" are in nanometres, all above 0"],
     },
     Case {
+        id: "huge-extinction",
+        edits: &[("{\"type\": \"diffuse\", \"reflectance\": 0.5}", "{\"type\": \"conductor\", \"eta\": 1, \"k\": 1e10, \"roughness\": 0.5}")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:3:63:",
+        words: &["materials.white.k: must be at most 1e6 (max 1e10)"],
+    },
+    Case {
         id: "nan-token",
         edits: &[("\"fov\": 40", "\"fov\": NaN")],
         args: &[],

@@ -461,6 +461,12 @@ fn spectrum_from_value(v: &serde_json::Value) -> Result<SpectrumSpec, String> {
 
 // ------------------------------------------------------------------ resolving
 
+/// The largest index of refraction or extinction coefficient a scene may
+/// give: no material comes within orders of magnitude of it, and from ~4e9
+/// on the conductor Fresnel terms (eta^2 + k^2)^2 overflow f32 (a rough
+/// conductor with k = 1e10 turned every sample that met it into NaN).
+const MAX_INDEX: f32 = 1e6;
+
 /// What a spectrum is used as: decides how RGB is upsampled and which
 /// built-in names apply.
 #[derive(Clone, Copy, PartialEq)]
@@ -632,6 +638,15 @@ impl Ctx<'_> {
         Ok(s)
     }
 
+    /// An index of refraction or a conductor's k, at most `MAX_INDEX`.
+    fn index(&self, path: &[Seg], spec: &SpectrumSpec, usage: Use) -> Result<Spectrum, LoadError> {
+        let s = self.spectrum(path, spec, usage)?;
+        if s.max_value() > MAX_INDEX {
+            return Err(self.err(path, format!("must be at most {MAX_INDEX:e} (max {:e})", s.max_value())));
+        }
+        Ok(s)
+    }
+
     fn material(&self, path: &[Seg], spec: &MaterialSpec) -> Result<Bsdf, LoadError> {
         let at = |k: &str| with(path, k);
         Ok(match spec {
@@ -650,7 +665,7 @@ impl Ctx<'_> {
                         )
                     })?,
                     (None, Some(eta), Some(k)) => {
-                        (self.spectrum(&at("eta"), eta, Use::Ior)?, self.spectrum(&at("k"), k, Use::Other)?)
+                        (self.index(&at("eta"), eta, Use::Ior)?, self.index(&at("k"), k, Use::Other)?)
                     }
                     (None, None, None) => spectrum::metal_eta_k("Cu").expect("Cu is a known metal"),
                     _ => return Err(self.err(path, "give either \"metal\" or both \"eta\" and \"k\"")),
@@ -659,7 +674,7 @@ impl Ctx<'_> {
                 Bsdf::Conductor(Conductor::new(eta, k, ax, ay))
             }
             MaterialSpec::Dielectric(d) => {
-                let eta = self.spectrum(&at("ior"), &d.ior, Use::Ior)?;
+                let eta = self.index(&at("ior"), &d.ior, Use::Ior)?;
                 let (ax, ay) = self.alphas(path, d.roughness, d.alpha, d.alpha_x, d.alpha_y)?;
                 Bsdf::Dielectric(Dielectric::new(eta, ax, ay))
             }
