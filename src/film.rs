@@ -303,7 +303,12 @@ impl Outputs {
     }
 
     /// Moves every staged file into place, then flushes their directories.
+    /// A target that is a directory, which no rename can replace, is
+    /// refused before any file moves.
     pub fn commit(mut self) -> Result<()> {
+        if let Some((_, path)) = self.staged.iter().find(|(_, path)| path.is_dir()) {
+            bail!("cannot write {}: it is a directory", path.display());
+        }
         let staged = std::mem::take(&mut self.staged);
         let mut dirs: Vec<&Path> = Vec::new();
         for (i, (tmp, path)) in staged.iter().enumerate() {
@@ -442,8 +447,9 @@ mod tests {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
-    /// A set of outputs whose last write fails changes none of its targets
-    /// and leaves no temporary file; committed, every target holds its new
+    /// A set of outputs whose last write fails, or one of whose targets is a
+    /// directory, changes none of its targets and leaves no temporary file;
+    /// committed, every target holds its new
     /// contents. (The control: the same first file written on its own is
     /// replaced, so the check of the old contents can fail.)
     #[test]
@@ -463,6 +469,14 @@ mod tests {
         drop(out);
         assert_eq!(std::fs::read_to_string(&a).unwrap(), "old a");
         assert_eq!(std::fs::read_to_string(&b).unwrap(), "old b");
+        // A target that is a directory stops the commit before any move.
+        std::fs::create_dir(dir.join("c")).unwrap();
+        let mut out = Outputs::default();
+        out.bytes(&a, b"new a").unwrap();
+        out.bytes(&dir.join("c"), b"new c").unwrap();
+        assert!(out.commit().unwrap_err().to_string().contains("is a directory"));
+        assert_eq!(std::fs::read_to_string(&a).unwrap(), "old a");
+        std::fs::remove_dir(dir.join("c")).unwrap();
         let mut out = Outputs::default();
         out.bytes(&a, b"new a").unwrap();
         out.bytes(&b, b"new b").unwrap();

@@ -449,6 +449,9 @@ fn render_command(a: RenderArgs) -> Result<()> {
     });
     out.json(&a.out.with_extension("json"), &sidecar)?;
     out.commit()?;
+    if let Some(dir) = &a.strategies {
+        eprintln!("wrote the per-strategy images to {}", dir.display());
+    }
     let checkpoint = a.out.with_extension("ckpt");
     if a.checkpoint_every.is_some() || a.resume.as_ref() == Some(&checkpoint) {
         // The outputs are complete: this render's checkpoint has done its job.
@@ -536,8 +539,7 @@ fn render_strategies(s: &Setup, dir: &Path, out: &mut Outputs) -> Result<(Vec<[f
     let mut film = Film::new(s.identity.width, s.identity.height);
     let mut images = StrategyImages::new(film.width, film.height);
     let stats = render_with_strategies(&s.scene, s.integrator.as_ref(), &s.opts, &mut film, 0..s.spp, &mut images);
-    let staged = images.stage_exrs(dir, out)?;
-    eprintln!("{staged} per-strategy images for {}", dir.display());
+    images.stage_exrs(dir, out)?;
     let sidecar = Sidecar::new(s.identity.clone(), film.spp, std::slice::from_ref(&(0..s.spp)), film.dropped);
     Ok((film.image(), sidecar, stats))
 }

@@ -41,7 +41,7 @@
 //! | --spp    | 64           | samples per pixel (`$spp`)               |
 
 use crate::camera::Camera;
-use crate::film::write_bytes;
+use crate::film::Outputs;
 use crate::light::Light;
 use crate::materials::Bsdf;
 use crate::scene::{load_scene, Scene};
@@ -121,14 +121,17 @@ pub fn export(scene: &Scene, dir: &Path, spp: u32) -> Result<usize> {
     );
     let _ = writeln!(xml, "<scene version=\"3.0.0\">");
     sensor_xml(&mut xml, &scene.camera, spp);
+    // The meshes and scene.xml are moved into place together: a failed
+    // write leaves an earlier export as it was.
+    let mut out = Outputs::default();
     for (k, g) in groups.iter().enumerate() {
         let file = format!("meshes/{k:03}.ply");
-        write_ply(&dir.join(&file), &g.positions, &g.normals)?;
+        out.bytes(&dir.join(&file), &ply_bytes(&g.positions, &g.normals))?;
         shape_xml(&mut xml, scene, g, &file);
     }
     let _ = writeln!(xml, "</scene>");
-    let path = dir.join("scene.xml");
-    write_bytes(&path, xml.as_bytes())?;
+    out.bytes(&dir.join("scene.xml"), xml.as_bytes())?;
+    out.commit()?;
     remove_stale_meshes(&mesh_dir, groups.len())?;
     Ok(groups.len())
 }
@@ -257,7 +260,7 @@ fn xml_escape(s: &str) -> String {
 
 /// A binary little-endian PLY triangle soup: vertices 3i, 3i+1, 3i+2 make
 /// triangle i (winding kept), with per-vertex normals if given.
-fn write_ply(path: &Path, positions: &[Vec3A], normals: &[Vec3A]) -> Result<()> {
+fn ply_bytes(positions: &[Vec3A], normals: &[Vec3A]) -> Vec<u8> {
     let n_tris = positions.len() / 3;
     let mut header = format!("ply\nformat binary_little_endian 1.0\nelement vertex {}\n", positions.len());
     header += "property float x\nproperty float y\nproperty float z\n";
@@ -281,7 +284,7 @@ fn write_ply(path: &Path, positions: &[Vec3A], normals: &[Vec3A]) -> Result<()> 
             bytes.extend((3 * t + j).to_le_bytes());
         }
     }
-    write_bytes(path, &bytes)
+    bytes
 }
 
 #[cfg(test)]
