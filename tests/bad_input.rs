@@ -83,6 +83,14 @@ const CASES: &[Case] = &[
         words: &["materials.white.k: must be at most 1e6 (max 1e10)"],
     },
     Case {
+        id: "cold-blackbody",
+        edits: &[("\"radiance\": 1.0", "\"radiance\": {\"blackbody\": 1}")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:5:50:",
+        words: &["lights[0].radiance: a blackbody at 1 K emits no visible light to normalise"],
+    },
+    Case {
         id: "nan-token",
         edits: &[("\"fov\": 40", "\"fov\": NaN")],
         args: &[],

@@ -525,7 +525,12 @@ impl Ctx<'_> {
                 if !(t.is_finite() && *t > 0.0) {
                     return Err(self.err(path, "blackbody temperature must be > 0 kelvin"));
                 }
-                spectrum::blackbody(*t).scale(self.scale(path, *scale)?)
+                let b = spectrum::blackbody(*t);
+                if b.max_value() == 0.0 {
+                    let why = format!("a blackbody at {t} K emits no visible light to normalise (it underflows)");
+                    return Err(self.err(path, why));
+                }
+                b.scale(self.scale(path, *scale)?)
             }
             SpectrumSpec::Tabulated(w, v, scale) => {
                 self.tabulated_spectrum(path, w, v)?.scale(self.scale(path, *scale)?)
