@@ -232,6 +232,17 @@ const CASES: &[Case] = &[
         words: &["objects[0].shape.file:", "mixed.obj: object \"unnamed_object\" has normals on only some faces"],
     },
     Case {
+        id: "obj-without-faces",
+        edits: &[(
+            "{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1}",
+            "{\"type\": \"obj\", \"file\": \"faceless.obj\"}",
+        )],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:4:",
+        words: &["objects[0].shape.file:", "faceless.obj: no triangles"],
+    },
+    Case {
         id: "triangle-too-large",
         edits: &[("\"material\": \"white\"}", "\"material\": \"white\", \"transform\": {\"scale\": 1e12}}")],
         args: &[],
@@ -497,6 +508,8 @@ fn run(case: &Case) -> Result<(), String> {
     std::fs::create_dir_all(dir.join("taken-sidecar.json")).unwrap();
     // An OBJ with normals on one face of two (tobj then gives 3 normals for 6 vertices).
     std::fs::write(dir.join("mixed.obj"), MIXED_OBJ).unwrap();
+    // An OBJ with vertices but no face.
+    std::fs::write(dir.join("faceless.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\n").unwrap();
     // An earlier part's state (its contents are never read by these cases).
     std::fs::write(dir.join("part.state"), PREVIOUS).unwrap();
     let out = if Path::new(case.out).is_absolute() { PathBuf::from(case.out) } else { dir.join(case.out) };

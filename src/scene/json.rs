@@ -809,6 +809,10 @@ impl Ctx<'_> {
         if mesh.positions.iter().any(|p| !p.is_finite()) {
             return Err(self.err(path, format!("{}: non-finite vertex position", full.display())));
         }
+        if mesh.indices.is_empty() {
+            let why = format!("{}: no triangles (no `f` line of three or more vertices)", full.display());
+            return Err(self.err(path, why));
+        }
         Ok(mesh)
     }
 
