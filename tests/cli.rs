@@ -116,6 +116,11 @@ fn bad_scenes_name_file_line_and_field() {
         assert!(e.contains(words), "case {i}: expected {words:?} in {e}");
         assert!(!out.exists(), "case {i} left an output file");
     }
+    // A byte that is not UTF-8 is located by line and column too.
+    let scene = d.join("latin1.json");
+    std::fs::write(&scene, b"{\n  \"camera\": \xff\n}\n").unwrap();
+    let o = prism(&["render", scene.to_str().unwrap(), "--out", d.join("latin1.exr").to_str().unwrap(), "--quiet"]);
+    assert!(!o.status.success() && stderr(&o).contains("latin1.json:2:13: not UTF-8 text"), "{}", stderr(&o));
     let _ = std::fs::remove_dir_all(&d);
 }
 

@@ -866,7 +866,13 @@ pub fn load_scene(path: &Path) -> Result<SceneBuilder, LoadError> {
     let file = path.display().to_string();
     let fail = |e: String| LoadError { file: file.clone(), position: None, field: String::new(), message: e };
     let bytes = super::read_regular_file(path).map_err(|e| fail(format!("cannot read scene file: {e}")))?;
-    let text = String::from_utf8(bytes).map_err(|e| fail(format!("cannot read scene file: {e}")))?;
+    let text = String::from_utf8(bytes).map_err(|e| {
+        // Where the first bad byte is, as line and column.
+        let valid = &e.as_bytes()[..e.utf8_error().valid_up_to()];
+        let line = valid.iter().filter(|&&b| b == b'\n').count() + 1;
+        let column = valid.iter().rev().take_while(|&&b| b != b'\n').count() + 1;
+        LoadError { position: Some((line, column)), ..fail("not UTF-8 text".to_string()) }
+    })?;
     let dir = path.parent().unwrap_or(Path::new("."));
     parse_scene(&text, &file, dir)
 }
