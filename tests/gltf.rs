@@ -227,6 +227,16 @@ fn unsupported_features_are_named_errors() {
     v["scenes"][0]["nodes"] = json!([0, 1]);
     let e = parse(&v, "Triangle (tiny yfov)").err().unwrap();
     assert!(e.contains("nodes[1]: yfov 1e-30 rad is too small: the image has no area"), "{e}");
+    // An aspect ratio glTF forbids is refused; one too wide is clamped,
+    // with a warning.
+    v["cameras"][0]["perspective"]["yfov"] = json!(0.7);
+    v["cameras"][0]["perspective"]["aspectRatio"] = json!(0.0);
+    let e = parse(&v, "Triangle (aspect 0)").err().unwrap();
+    assert!(e.contains("nodes[1]: aspectRatio 0 is not a positive number"), "{e}");
+    v["cameras"][0]["perspective"]["aspectRatio"] = json!(1e9);
+    let g = parse(&v, "Triangle (aspect 1e9)").unwrap();
+    assert!(has(&g.messages, "the width is clamped to 16384 pixels"), "{:?}", g.messages);
+    v["cameras"][0]["perspective"].as_object_mut().unwrap().remove("aspectRatio");
     // Far from the origin a camera keeps its direction (position +
     // direction in f32 would round it to the axis).
     let (s, c) = (18.434949f64.to_radians().sin(), 18.434949f64.to_radians().cos());

@@ -78,6 +78,12 @@ fn render_reference(
     let estimator = integrators::create(integrator, &IntegratorOptions { max_depth, mis: MisHeuristic::Power })
         .map_err(anyhow::Error::msg)?;
     let per_pass = spp.div_ceil(passes);
+    if per_pass * passes != spp {
+        eprintln!(
+            "note: --reference-spp {spp} over {passes} passes: {per_pass} spp per pass, {} in all",
+            per_pass * passes
+        );
+    }
     // The largest block (for the sidecar's z-test statistics) that tiles the image.
     let block = [8, 4, 2, 1].into_iter().find(|b| w % b == 0 && h % b == 0).unwrap_or(1);
     let ref_seed = seed.wrapping_add(REFERENCE_SEED_OFFSET);

@@ -380,7 +380,7 @@ impl Importer {
         Ok(content)
     }
 
-    fn camera(&self, label: &str, world: Affine3A, yfov: f32, aspect: Option<f32>) -> Result<Camera, LoadError> {
+    fn camera(&mut self, label: &str, world: Affine3A, yfov: f32, aspect: Option<f32>) -> Result<Camera, LoadError> {
         let position = world.translation;
         let (forward, up) = (world.transform_vector3a(-Vec3A::Z), world.transform_vector3a(Vec3A::Y));
         let (forward, up) = (forward.as_dvec3(), up.as_dvec3());
@@ -391,8 +391,16 @@ impl Importer {
         if !(fov.is_finite() && fov > 0.0 && fov < 180.0) {
             return Err(self.fail(label, format!("yfov {yfov} rad is not between 0 and pi")));
         }
-        let aspect = aspect.filter(|a| a.is_finite() && *a > 0.0).unwrap_or(DEFAULT_ASPECT);
-        let width = ((DEFAULT_HEIGHT as f32 * aspect).round() as u32).clamp(1, 16384);
+        if let Some(a) = aspect.filter(|a| !(a.is_finite() && *a > 0.0)) {
+            return Err(self.fail(label, format!("aspectRatio {a} is not a positive number")));
+        }
+        let aspect = aspect.unwrap_or(DEFAULT_ASPECT);
+        let exact = (DEFAULT_HEIGHT as f32 * aspect).round();
+        let width = (exact as u32).clamp(1, 16384);
+        if width as f32 != exact.max(1.0) {
+            let why = format!("aspectRatio {aspect} at {DEFAULT_HEIGHT} rows: the width is clamped to {width} pixels");
+            self.warn(label, why);
+        }
         let camera = Camera::looking(position, forward, up, fov, width, DEFAULT_HEIGHT);
         // As the JSON loader: light tracing divides by the image's area.
         if !camera.has_image_area() {
