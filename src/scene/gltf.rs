@@ -156,7 +156,11 @@ pub(super) fn include(
             message: format!("{file} has no material \"{key}\" (known: {})", known.join(", ")),
         });
     }
+    imp.own_camera = false;
     let content = imp.import(transform).map_err(err)?;
+    if content.camera.is_some() {
+        imp.note("cameras", "not used: the including JSON scene's camera renders");
+    }
     let ids = imp.add_materials(b, &content, material, overrides);
     let Content { meshes, lights, .. } = content;
     for m in meshes {
@@ -209,6 +213,9 @@ struct Importer {
     /// Texel means of each image (None: it could not be decoded).
     image_means: HashMap<usize, Option<ImageMeans>>,
     messages: Vec<String>,
+    /// Whether the file's camera renders (false when a JSON scene includes
+    /// it), for the notes that say which does.
+    own_camera: bool,
 }
 
 impl Importer {
@@ -259,6 +266,7 @@ impl Importer {
             material_slots: HashMap::new(),
             image_means: HashMap::new(),
             messages: Vec::new(),
+            own_camera: true,
         };
         let used: Vec<String> = imp.doc.extensions_used().map(str::to_string).collect();
         for ext in used {
@@ -359,7 +367,9 @@ impl Importer {
                 match camera.projection() {
                     gltf::camera::Projection::Perspective(p) if content.camera.is_none() => {
                         content.camera = Some(self.camera(&label, world, p.yfov(), p.aspect_ratio())?);
-                        self.note(&label, "renders through this node's camera");
+                        if self.own_camera {
+                            self.note(&label, "renders through this node's camera");
+                        }
                     }
                     gltf::camera::Projection::Perspective(_) => {}
                     gltf::camera::Projection::Orthographic(_) => {
@@ -374,7 +384,7 @@ impl Importer {
                 stack.push((child.index(), world, depth + 1));
             }
         }
-        if cameras > 1 && content.camera.is_some() {
+        if cameras > 1 && content.camera.is_some() && self.own_camera {
             self.note("cameras", format!("{} other camera node(s) not used", cameras - 1));
         }
         Ok(content)
@@ -528,7 +538,11 @@ impl Importer {
             (positions, normals, list)
         };
         let Some(positions) = positions else {
-            return Err(self.fail(pwhat, "has no POSITION data"));
+            let why = match prim.get(&gltf::Semantic::Positions) {
+                Some(_) => "its POSITION accessor cannot be read (its buffer view or buffer is too short)",
+                None => "has no POSITION data",
+            };
+            return Err(self.fail(pwhat, why));
         };
         if Some(positions.len()) != prim.get(&gltf::Semantic::Positions).map(|a| a.count()) {
             return Err(self.fail(pwhat, "the POSITION accessor reaches outside its buffer view"));
