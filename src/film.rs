@@ -276,7 +276,10 @@ impl Outputs {
         // depends on the pixels alone.
         let encoding = Encoding { line_order: LineOrder::Increasing, ..Encoding::FAST_LOSSLESS };
         let exr = Image::from_encoded_channels((width as usize, height as usize), encoding, channels);
-        self.stage(path, |tmp| exr.write().to_file(tmp).with_context(|| format!("cannot write {}", path.display())))
+        // (Its message only: the exr error repeats its source's in Display.)
+        self.stage(path, |tmp| {
+            exr.write().to_file(tmp).map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))
+        })
     }
 
     /// An 8-bit sRGB PNG preview: linear values times 2^exposure, sRGB
