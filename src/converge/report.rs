@@ -1,10 +1,11 @@
 //! The files a run writes: results.csv, results.json, report.md, the
-//! charts and the image panels, each written whole or not at all.
+//! charts and the image panels, moved into place together (`film::Outputs`):
+//! all of them or none.
 
 use super::chart::{chart_svg, svg_to_png, Axis};
 use super::images::{auto_exposure, compose, error_range, false_colour, pixel_errors, tonemap};
 use super::{ConvergeConfig, ConvergeResults};
-use crate::film::{encode_png, write_bytes, write_json};
+use crate::film::{encode_png, Outputs};
 use anyhow::Result;
 use image::RgbImage;
 use std::fmt::Write as _;
@@ -17,13 +18,14 @@ pub(super) fn write_outputs(
     finals: &[Vec<[f32; 3]>],
 ) -> Result<()> {
     let dir = &cfg.out;
-    write_text(&dir.join("results.csv"), &results_csv(r))?;
-    write_json(&dir.join("results.json"), r)?;
+    let mut out = Outputs::default();
+    out.bytes(&dir.join("results.csv"), results_csv(r).as_bytes())?;
+    out.json(&dir.join("results.json"), r)?;
     let time_svg = chart_svg(r, Axis::Seconds)?;
     let spp_svg = chart_svg(r, Axis::Spp)?;
     for (name, svg) in [("error-vs-time", &time_svg), ("error-vs-spp", &spp_svg)] {
-        write_text(&dir.join(format!("{name}.svg")), svg)?;
-        write_png(&dir.join(format!("{name}.png")), &svg_to_png(svg, 1.0)?)?;
+        out.bytes(&dir.join(format!("{name}.svg")), svg.as_bytes())?;
+        png(&mut out, &dir.join(format!("{name}.png")), svg_to_png(svg, 1.0)?)?;
     }
     let scale = match cfg.exposure {
         Some(e) => 2f32.powf(e),
@@ -37,7 +39,7 @@ pub(super) fn write_outputs(
     for (res, img) in r.integrators.iter().zip(finals) {
         panels.push((format!("{} ({} spp)", res.label, res.spp), tonemap(img, r.width, r.height, scale)));
     }
-    write_png(&dir.join("images.png"), &compose(&panels, None)?)?;
+    png(&mut out, &dir.join("images.png"), compose(&panels, None)?)?;
     let maps: Vec<Vec<f64>> = finals.iter().map(|img| pixel_errors(img, reference)).collect();
     let (lo, hi) = error_range(&maps);
     let panels: Vec<(String, RgbImage)> = r
@@ -48,17 +50,13 @@ pub(super) fn write_outputs(
             (format!("{}: relMSE {:.2e}", res.label, res.rel_mse), false_colour(m, r.width, r.height, lo, hi))
         })
         .collect();
-    write_png(&dir.join("errors.png"), &compose(&panels, Some((lo, hi)))?)?;
-    write_text(&dir.join("report.md"), &report_md(r))
+    png(&mut out, &dir.join("errors.png"), compose(&panels, Some((lo, hi)))?)?;
+    out.bytes(&dir.join("report.md"), report_md(r).as_bytes())?;
+    out.commit()
 }
 
-/// Each output appears whole or not at all (`film::Outputs`).
-fn write_text(path: &Path, text: &str) -> Result<()> {
-    write_bytes(path, text.as_bytes())
-}
-
-fn write_png(path: &Path, image: &RgbImage) -> Result<()> {
-    write_bytes(path, &encode_png(&image::DynamicImage::ImageRgb8(image.clone()))?)
+fn png(out: &mut Outputs, path: &Path, image: RgbImage) -> Result<()> {
+    out.bytes(path, &encode_png(&image::DynamicImage::ImageRgb8(image))?)
 }
 
 /// One row per checkpoint: `integrator,spp,seconds,cpu_seconds,rel_mse,mse,mae,by_spp`
