@@ -201,7 +201,7 @@ pub fn ensure_exr(flag: &str, path: &Path) -> Result<()> {
 /// Refuses an output path without the extension `ext`: a slip of `--png`
 /// would otherwise write a PNG over, say, a scene's OBJ mesh.
 pub fn ensure_extension(flag: &str, path: &Path, ext: &str) -> Result<()> {
-    if path.extension().and_then(|e| e.to_str()) != Some(ext) {
+    if !path.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case(ext)) {
         let article = if ext.starts_with(['a', 'e', 'i', 'o', 'u']) { "an" } else { "a" };
         bail!("{flag} must name {article} .{ext} file, got {}", path.display());
     }
@@ -257,6 +257,9 @@ impl Outputs {
         let name = path.file_name().context("output path has no file name")?.to_string_lossy();
         let ext = path.extension().map(|e| e.to_string_lossy().to_string()).unwrap_or_default();
         let tmp = dir.join(format!(".{name}.{}.tmp.{ext}", std::process::id()));
+        if self.staged.iter().any(|(_, target)| target == path) {
+            bail!("{} would be written twice, as two of this run's outputs", path.display());
+        }
         // Listed first, so that a failed write's partial file is removed too.
         self.staged.push((tmp.clone(), path.to_path_buf()));
         write(&tmp)?;
@@ -480,6 +483,13 @@ mod tests {
         assert!(out.commit().unwrap_err().to_string().contains("is a directory"));
         assert_eq!(std::fs::read_to_string(&a).unwrap(), "old a");
         std::fs::remove_dir(dir.join("c")).unwrap();
+        // One target staged twice (e.g. --out inside --strategies' directory
+        // under a strategy image's name) is refused when staged.
+        let mut out = Outputs::default();
+        out.bytes(&a, b"new a").unwrap();
+        assert!(out.bytes(&a, b"again").unwrap_err().to_string().contains("would be written twice"));
+        drop(out);
+        assert_eq!(std::fs::read_to_string(&a).unwrap(), "old a");
         let mut out = Outputs::default();
         out.bytes(&a, b"new a").unwrap();
         out.bytes(&b, b"new b").unwrap();
@@ -493,6 +503,16 @@ mod tests {
         names.sort();
         assert_eq!(names, ["a.json", "b.bin"], "no temporary file is left");
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Output extensions are matched without regard to case.
+    #[test]
+    fn extensions_match_in_any_case() {
+        assert!(ensure_extension("--png", Path::new("a.PNG"), "png").is_ok());
+        assert!(ensure_extension("--png", Path::new("a.png"), "png").is_ok());
+        let e = ensure_extension("--png", Path::new("a.obj"), "png").unwrap_err().to_string();
+        assert_eq!(e, "--png must name a .png file, got a.obj");
+        assert!(ensure_extension("--png", Path::new("png"), "png").is_err());
     }
 
     /// The i64 shortcut truncates as the i128 conversion does, on both sides

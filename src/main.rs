@@ -330,13 +330,13 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
     check_threads(a.threads)?;
     let seed = a.seed.or(defaults.seed).unwrap_or(0);
     let max_depth = a.max_depth.or(defaults.max_depth).unwrap_or(IntegratorOptions::default().max_depth);
+    let mis = a.mis.unwrap_or_default();
+    let integrator = integrators::create(&name, &IntegratorOptions { max_depth, mis }).map_err(anyhow::Error::msg)?;
     if a.mis.is_some() && !integrators::reads_mis(&name) {
         // Not an error: a script may pass one --mis to every integrator, and
         // such parts still merge (the sidecar records the default).
         eprintln!("warning: --mis sets bdpt's heuristic; {name} reads none and ignores it");
     }
-    let mis = a.mis.unwrap_or_default();
-    let integrator = integrators::create(&name, &IntegratorOptions { max_depth, mis }).map_err(anyhow::Error::msg)?;
     if a.strategies.is_some() && name != "bdpt" {
         bail!("--strategies needs --integrator bdpt (got {name})");
     }

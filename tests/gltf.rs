@@ -308,6 +308,19 @@ fn json_scene_includes_gltf_with_material_overrides() {
     assert!(e.contains("objects[0].shape.file") && e.contains("cannot read glTF file"), "{e}");
     let e = parse_json(&scene_text("{}", "").replace(r#""material": "grey""#, r#""comment": "x""#)).err().unwrap();
     assert!(e.contains("objects[1]: missing field `material`"), "{e}");
+
+    // An included file's camera is not used, so its invalid aspect ratio,
+    // which the file refuses on its own, does not stop the scene.
+    let d = scenes::temp_dir("gltf-include-camera");
+    let mut v = read_json(&dir().join("Cameras.gltf"));
+    v["cameras"][0]["perspective"]["aspectRatio"] = json!(0.0);
+    let file = d.join("cameras.gltf");
+    std::fs::write(&file, v.to_string()).unwrap();
+    let e = load_gltf(&file).err().unwrap().to_string();
+    assert!(e.contains("aspectRatio 0 is not a positive number"), "{e}");
+    let text = scene_text("{}", "").replace("Box.gltf", file.to_str().unwrap());
+    parse_json(&text).unwrap();
+    std::fs::remove_dir_all(&d).unwrap();
 }
 
 // ------------------------------------------------------------- Cornell box

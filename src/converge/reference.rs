@@ -23,17 +23,18 @@ pub(super) fn obtain_reference(
     let (w, h) = (scene.camera.width, scene.camera.height);
     let (image, origin, path, here) = match &cfg.reference {
         ReferenceSource::File(path) => {
-            let (image, origin) = if path.with_extension("json").exists() {
+            let (image, origin, width) = if path.with_extension("json").exists() {
                 let (image, origin) = read_any_reference(path)?;
-                (image, Some(origin))
+                let width = origin.width;
+                (image, Some(origin), width)
             } else {
                 let (rw, rh, image) = read_exr(path)?;
                 ensure!((rw, rh) == (w, h), "{} is {rw}x{rh} but the run renders {w}x{h}", path.display());
-                (image, None)
+                (image, None, rw)
             };
             // (A rendered reference's pixels are finite: the film keeps
             // other samples out.)
-            ensure_finite(path, w, &image)?;
+            ensure_finite(path, width, &image)?;
             (image, origin, path.clone(), false)
         }
         ReferenceSource::Render { integrator, spp, passes, out } => {

@@ -401,13 +401,15 @@ impl Importer {
         if !(fov.is_finite() && fov > 0.0 && fov < 180.0) {
             return Err(self.fail(label, format!("yfov {yfov} rad is not between 0 and pi")));
         }
-        if let Some(a) = aspect.filter(|a| !(a.is_finite() && *a > 0.0)) {
+        // (Checked only for a camera that renders: an included file's is not used.)
+        let valid = aspect.filter(|a| a.is_finite() && *a > 0.0);
+        if let Some(a) = aspect.filter(|_| valid.is_none() && self.own_camera) {
             return Err(self.fail(label, format!("aspectRatio {a} is not a positive number")));
         }
-        let aspect = aspect.unwrap_or(DEFAULT_ASPECT);
+        let aspect = valid.unwrap_or(DEFAULT_ASPECT);
         let exact = (DEFAULT_HEIGHT as f32 * aspect).round();
         let width = (exact as u32).clamp(1, 16384);
-        if width as f32 != exact.max(1.0) {
+        if self.own_camera && !(1.0..=16384.0).contains(&exact) {
             let why = format!("aspectRatio {aspect} at {DEFAULT_HEIGHT} rows: the width is clamped to {width} pixels");
             self.warn(label, why);
         }
@@ -539,7 +541,7 @@ impl Importer {
         };
         let Some(positions) = positions else {
             let why = match prim.get(&gltf::Semantic::Positions) {
-                Some(_) => "its POSITION accessor cannot be read (its buffer view or buffer is too short)",
+                Some(_) => "its POSITION accessor gives no data (no buffer view, or one its buffer is too short for)",
                 None => "has no POSITION data",
             };
             return Err(self.fail(pwhat, why));
