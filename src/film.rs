@@ -358,17 +358,25 @@ pub fn encode_png(image: &image::DynamicImage) -> Result<Vec<u8>> {
     Ok(png)
 }
 
-/// One output written on its own (`Outputs`).
-pub fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
-    let mut out = Outputs::default();
-    out.stage(path, write)?;
-    out.commit()
-}
-
 /// Writes an f32 RGB EXR (linear sRGB) on its own.
 pub fn write_exr(path: &Path, width: u32, height: u32, image: &[[f32; 3]]) -> Result<()> {
+    alone(|out| out.exr(path, width, height, image))
+}
+
+/// Writes a JSON document on its own.
+pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
+    alone(|out| out.json(path, value))
+}
+
+/// Writes `bytes` to `path` on its own.
+pub fn write_bytes(path: &Path, bytes: &[u8]) -> Result<()> {
+    alone(|out| out.bytes(path, bytes))
+}
+
+/// One output, staged by `stage` and committed (`Outputs`).
+fn alone(stage: impl FnOnce(&mut Outputs) -> Result<()>) -> Result<()> {
     let mut out = Outputs::default();
-    out.exr(path, width, height, image)?;
+    stage(&mut out)?;
     out.commit()
 }
 
@@ -409,20 +417,6 @@ fn srgb_encode(c: f32) -> f32 {
     }
 }
 
-/// Writes a JSON document on its own.
-pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
-    let mut out = Outputs::default();
-    out.json(path, value)?;
-    out.commit()
-}
-
-/// Writes `bytes` to `path` on its own.
-pub fn write_bytes(path: &Path, bytes: &[u8]) -> Result<()> {
-    let mut out = Outputs::default();
-    out.bytes(path, bytes)?;
-    out.commit()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -453,11 +447,11 @@ mod tests {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
-    /// A set of outputs whose last write fails, or one of whose targets is a
-    /// directory, changes none of its targets and leaves no temporary file;
-    /// committed, every target holds its new
-    /// contents. (The control: the same first file written on its own is
-    /// replaced, so the check of the old contents can fail.)
+    /// A set of outputs whose last write fails, one of whose targets is a
+    /// directory, or which stages one target twice changes none of its
+    /// targets and leaves no temporary file. The control: the same set
+    /// committed whole replaces every target, so the checks of the old
+    /// contents can fail.
     #[test]
     fn outputs_change_no_target_unless_all_are_written() {
         let dir = std::env::temp_dir().join(format!("prism-outputs-{}", std::process::id()));

@@ -4,7 +4,7 @@
 //! and where the numbers came from (integrator, spp, passes, seed, commit,
 //! wall time). Made by `prism reference`; read by tests/agreement.rs.
 
-use crate::film::{read_exr, write_exr, write_json};
+use crate::film::{read_exr, Outputs};
 use crate::integrators::Integrator;
 use crate::scene::Scene;
 use crate::stats::{pixel_mean_variance, render_passes, BlockStats};
@@ -89,10 +89,12 @@ pub fn make_reference(
     (mean, meta)
 }
 
-/// Writes `<out>.exr` and its sidecar `<out>.json`.
+/// Writes `<out>.exr` and its sidecar `<out>.json`, moved into place together.
 pub fn write_reference(out: &Path, image: &[[f32; 3]], meta: &ReferenceMeta) -> Result<()> {
-    write_exr(out, meta.width, meta.height, image)?;
-    write_json(&out.with_extension("json"), meta)
+    let mut files = Outputs::default();
+    files.exr(out, meta.width, meta.height, image)?;
+    files.json(&out.with_extension("json"), meta)?;
+    files.commit()
 }
 
 /// Reads a reference's sidecar (and checks its EXR matches it).

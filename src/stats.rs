@@ -28,11 +28,12 @@ pub fn render_passes(
 }
 
 /// Refuses `k` passes of a `width` x `height` image that this machine could
-/// not hold: `render_pass_films` keeps every pass's film (48 bytes a pixel)
-/// and then its image (12) until the statistics are taken. (Without this, a
-/// mistyped `--passes` ends in an allocation failure's abort.)
+/// not hold: `render_pass_films` keeps every pass's film and then its image
+/// until the statistics are taken. (Without this, a mistyped `--passes`
+/// ends in an allocation failure's abort.)
 pub fn check_pass_memory(k: u32, width: u32, height: u32) -> Result<(), String> {
-    let bytes = k as f64 * width as f64 * height as f64 * 60.0;
+    let per_pixel = std::mem::size_of::<[i128; 3]>() + std::mem::size_of::<[f32; 3]>();
+    let bytes = k as f64 * width as f64 * height as f64 * per_pixel as f64;
     match physical_memory() {
         Some(total) if bytes > total as f64 => Err(format!(
             "{k} passes of {width}x{height} pixels are held in memory together: {:.1} GB, more than this \
