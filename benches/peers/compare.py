@@ -15,8 +15,10 @@ the render (fairer on a machine shared with other jobs).
 
 With ROUNDS > 1, rounds/*.json holds every round's run: the ratio of two
 renderers run seconds apart in one round is measured under one load, so the
-median over rounds of those paired ratios (with their range) is the figure a
-shared, noisy host can still report; the best-of-rounds ratio needs the
+mean over rounds of those paired ratios, with its standard error (and the
+median and range), is the figure a shared, noisy host can still report
+(run.sh reverses every other round, so neither renderer of a pair always
+runs first); the best-of-rounds ratio needs the
 host quiet for the whole run. Prints Markdown and writes results.json next to
 the runs, with the machine run.sh recorded (machine.json: CPU, vector ISA,
 the target and float lanes of Dr.Jit's LLVM kernels).
@@ -58,6 +60,16 @@ def paired_ratios(out, a, b):
         if fb.exists():
             ratios.append(rate(json.loads(fa.read_text())) / rate(json.loads(fb.read_text())))
     return ratios
+
+
+def paired_summary(paired):
+    """Mean of the paired ratios with its standard error, then median,
+    range and count; '-' without any."""
+    if not paired:
+        return "-"
+    se = f" ± {np.std(paired, ddof=1) / np.sqrt(len(paired)):.2f}" if len(paired) > 1 else ""
+    return (f"{np.mean(paired):.2f}x{se} (median {np.median(paired):.2f}x, "
+            f"{min(paired):.2f}-{max(paired):.2f}, {len(paired)})")
 
 
 def round_rates(out, key):
@@ -149,13 +161,14 @@ def main():
     print("| renderer | samples | render s | CPU s | Msamples/s | Msamples/CPU-s | relMSE | relMSE at prism-path time | efficiency 1/(relMSE s) | mean R,G,B / reference |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---|")
     for r in rows:
+        at_path_time = f"{r['rel_mse_at_prism_path_time']:.3e}" if base else "-"
         extra = ""
         if r.get("first_seconds") is not None and r.get("first_seconds") != r["wall_seconds"]:
             extra = f" (first call {r['first_seconds']:.2f} s)"
         print(
             f"| {r['label']} | {r['samples'] / 1e6:.2f} M | {r['wall_seconds']:.2f}{extra} | {r['cpu_seconds']:.2f} "
             f"| {r['samples'] / r['wall_seconds'] / 1e6:.3f} | {per_cpu_second(r) / 1e6:.3f} "
-            f"| {r['rel_mse']:.3e} | {r['rel_mse_at_prism_path_time']:.3e} | {r['efficiency']:.2f} "
+            f"| {r['rel_mse']:.3e} | {at_path_time} | {r['efficiency']:.2f} "
             f"| {', '.join(f'{m:.4f}' for m in r['mean_ratio'])} |"
         )
     pairs = [
@@ -167,7 +180,7 @@ def main():
         ("prism-pgo-path", "mitsuba-llvm-path", 2.0),
         ("prism-pgo-light", "mitsuba-llvm-ptracer", 2.0),
     ]
-    print("\n| ratio (prism / Mitsuba) | samples/s (wall) | samples/CPU-s | efficiency (equal time) | paired by round: median (range, rounds) | target (samples/s) |")
+    print("\n| ratio (prism / Mitsuba) | samples/s (wall) | samples/CPU-s | efficiency (equal time) | paired by round: mean ± se (median, range, rounds) | target (samples/s) |")
     print("|---|---:|---:|---:|---:|---:|")
     ratios = []
     for a, b, target in pairs:
@@ -179,9 +192,7 @@ def main():
             paired = paired_ratios(out, a, b)
             ratios.append({"prism": a, "mitsuba": b, "wall": wall, "cpu": cpu, "efficiency": eff, "target": target,
                            "paired_by_round": paired})
-            by_round = (f"{np.median(paired):.2f}x ({min(paired):.2f}-{max(paired):.2f}, {len(paired)})"
-                        if paired else "-")
-            print(f"| {ra['label']} / {rb['label']} | {wall:.2f}x | {cpu:.2f}x | {eff:.2f}x | {by_round} "
+            print(f"| {ra['label']} / {rb['label']} | {wall:.2f}x | {cpu:.2f}x | {eff:.2f}x | {paired_summary(paired)} "
                   f"| {f'>= {target:.0f}x' if target else '-'} |")
     for key in ["prism-bdpt", "prism-pgo-bdpt"]:
         if key in by_key:

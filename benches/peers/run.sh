@@ -28,6 +28,11 @@
 # AVX2 (0: with 1, Mitsuba's LLVM path and ptracer also run with their
 # kernels compiled for x86-64-v3 with 8 float lanes, in every round: on an
 # AVX-512 host, Mitsuba at an AVX2 host's width; ~1 minute more).
+# Even rounds run the renderers in reverse order (ABBA), so that the paired
+# ratios compare.py reports are not biased towards the first of a pair.
+# ONLY ("prism-path mitsuba-llvm-path"): run just these renderers in each
+# round (the keys of run() below), e.g. many cheap rounds of one pair for
+# its paired ratio on a noisy host. RAYS (1: with 0, step 5 is skipped).
 # The whole script is one block, which bash reads before it runs any of it:
 # a file edited during a run (a checkout, a pull) cannot break the run.
 {
@@ -53,6 +58,27 @@ for v in SPP RES THREADS REF_SPP ROUNDS; do
         exit 1
     fi
 done
+PGO=${PGO:-0}
+AVX2=${AVX2:-0}
+RAYS=${RAYS:-1}
+# The renderers of a round (the keys of run() below), or ONLY's.
+KEYS=(prism-path mitsuba-llvm-path mitsuba-scalar-path prism-light mitsuba-llvm-ptracer)
+[[ $AVX2 == 1 ]] && KEYS+=(mitsuba-avx2-path mitsuba-avx2-ptracer)
+KEYS+=(prism-bdpt)
+[[ $PGO == 1 ]] && KEYS+=(prism-pgo-path prism-pgo-light prism-pgo-bdpt)
+if [[ -n ${ONLY:-} ]]; then
+    read -ra KEYS <<<"$ONLY"
+    for key in "${KEYS[@]}"; do
+        case $key in
+            prism-path | prism-light | prism-bdpt | mitsuba-llvm-path | mitsuba-scalar-path | mitsuba-llvm-ptracer | \
+                mitsuba-avx2-path | mitsuba-avx2-ptracer) ;;
+            prism-pgo-path | prism-pgo-light | prism-pgo-bdpt)
+                [[ $PGO == 1 ]] || { echo "error: ONLY names $key, which needs PGO=1" >&2; exit 1; } ;;
+            *) echo "error: ONLY names '$key', not a renderer (prism-path, mitsuba-llvm-path, ...: run.sh's run())" >&2
+                exit 1 ;;
+        esac
+    done
+fi
 if (( REF_SPP % REF_PASSES != 0 )); then
     echo "error: REF_SPP ($REF_SPP) must be a multiple of $REF_PASSES" >&2
     exit 1
@@ -93,8 +119,6 @@ export DRJIT_LIBLLVM_PATH
 # --- 3. prism and the exported scene
 CARGO_BUILD_JOBS=${CARGO_BUILD_JOBS:-1} cargo build --release --quiet --bins --example peer_rays
 PRISM=target/release/prism
-PGO=${PGO:-0}
-AVX2=${AVX2:-0}
 if [[ $PGO == 1 ]]; then
     echo "== profile-guided build (scripts/pgo-build.sh)"
     scripts/pgo-build.sh >/dev/null
@@ -199,23 +223,33 @@ PYEOF
     keep_best "$1" "$4" "$json"
 }
 
+# run KEY ROUND: one renderer's render in a round.
+run() {
+    case $1 in
+        prism-path) prism_run "$1" path "$2" ;;
+        prism-light) prism_run "$1" light "$2" ;;
+        prism-bdpt) prism_run "$1" bdpt "$2" ;;
+        prism-pgo-*) prism_run "$1" "${1#prism-pgo-}" "$2" target/pgo/prism ;;
+        mitsuba-llvm-path) mitsuba_run "$1" llvm_ad_spectral path "$2" ;;
+        mitsuba-scalar-path) mitsuba_run "$1" scalar_spectral path "$2" ;;
+        mitsuba-llvm-ptracer) mitsuba_run "$1" llvm_ad_spectral ptracer "$2" ;;
+        mitsuba-avx2-path) mitsuba_run "$1" llvm_ad_spectral path "$2" --avx2 ;;
+        mitsuba-avx2-ptracer) mitsuba_run "$1" llvm_ad_spectral ptracer "$2" --avx2 ;;
+    esac
+}
+
+# Odd rounds run the renderers in KEYS' order, even rounds in reverse
+# (ABBA), so a load that drifts within a round does not favour whichever
+# renderer of a pair comes first.
 for round in $(seq 1 "$ROUNDS"); do
     echo "== round $round of $ROUNDS: ${RES}x${RES}, $SPP spp, $THREADS threads"
-    prism_run prism-path path "$round"
-    mitsuba_run mitsuba-llvm-path llvm_ad_spectral path "$round"
-    mitsuba_run mitsuba-scalar-path scalar_spectral path "$round"
-    prism_run prism-light light "$round"
-    mitsuba_run mitsuba-llvm-ptracer llvm_ad_spectral ptracer "$round"
-    if [[ $AVX2 == 1 ]]; then
-        mitsuba_run mitsuba-avx2-path llvm_ad_spectral path "$round" --avx2
-        mitsuba_run mitsuba-avx2-ptracer llvm_ad_spectral ptracer "$round" --avx2
+    order=("${KEYS[@]}")
+    if (( round % 2 == 0 )); then
+        for ((i = ${#KEYS[@]} - 1, j = 0; i >= 0; i--, j++)); do order[j]=${KEYS[i]}; done
     fi
-    prism_run prism-bdpt bdpt "$round"
-    if [[ $PGO == 1 ]]; then
-        for integrator in path light bdpt; do
-            prism_run "prism-pgo-$integrator" "$integrator" "$round" target/pgo/prism
-        done
-    fi
+    for key in "${order[@]}"; do
+        run "$key" "$round"
+    done
 done
 
 # --- 5. rays alone: prism's traversal and Mitsuba's (Embree) on the same
@@ -226,7 +260,9 @@ done
 mkdir -p "$OUT/rays"
 rm -f "$OUT"/rays/*.json
 trap 'rm -f "$OUT/rays/rays.f32" "$OUT"/rays/*.tmp' EXIT
-for t in $(printf '%s\n' 1 "$THREADS" | sort -un); do
+thread_counts=$(printf '%s\n' 1 "$THREADS" | sort -un)
+[[ $RAYS == 1 ]] || thread_counts=
+for t in $thread_counts; do
     echo "== rays alone, $t thread(s)"
     target/release/examples/peer_rays "$SCENE" "$OUT/rays/rays.f32" "$t" >"$OUT/rays/prism-$t.tmp"
     "$PY" benches/peers/mitsuba_rays.py "$OUT/mitsuba-scene/scene.xml" "$OUT/rays/rays.f32" "$t" \
