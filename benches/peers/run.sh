@@ -30,9 +30,10 @@
 # AVX-512 host, Mitsuba at an AVX2 host's width; ~1 minute more).
 # Even rounds run the renderers in reverse order (ABBA), so that the paired
 # ratios compare.py reports are not biased towards the first of a pair.
-# ONLY ("prism-path mitsuba-llvm-path"): run just these renderers in each
-# round (the keys of run() below), e.g. many cheap rounds of one pair for
-# its paired ratio on a noisy host. RAYS (1: with 0, step 5 is skipped).
+# ONLY (all renderers; e.g. "prism-path mitsuba-llvm-path"): run just these
+# in each round (the keys of run() below), e.g. many cheap rounds of one
+# pair for its paired ratio on a noisy host. RAYS (1: with 0, step 5, the
+# rays alone, is skipped).
 # The whole script is one block, which bash reads before it runs any of it:
 # a file edited during a run (a checkout, a pull) cannot break the run.
 {
@@ -67,7 +68,11 @@ KEYS=(prism-path mitsuba-llvm-path mitsuba-scalar-path prism-light mitsuba-llvm-
 KEYS+=(prism-bdpt)
 [[ $PGO == 1 ]] && KEYS+=(prism-pgo-path prism-pgo-light prism-pgo-bdpt)
 if [[ -n ${ONLY:-} ]]; then
-    read -ra KEYS <<<"$ONLY"
+    read -rd '' -a KEYS <<<"$ONLY" || true
+    if (( ${#KEYS[@]} == 0 )); then
+        echo "error: ONLY names no renderer" >&2
+        exit 1
+    fi
     for key in "${KEYS[@]}"; do
         case $key in
             prism-path | prism-light | prism-bdpt | mitsuba-llvm-path | mitsuba-scalar-path | mitsuba-llvm-ptracer | \
@@ -78,6 +83,10 @@ if [[ -n ${ONLY:-} ]]; then
                 exit 1 ;;
         esac
     done
+fi
+if [[ $RAYS != [01] ]]; then
+    echo "error: RAYS must be 0 or 1 (is '$RAYS')" >&2
+    exit 1
 fi
 if (( REF_SPP % REF_PASSES != 0 )); then
     echo "error: REF_SPP ($REF_SPP) must be a multiple of $REF_PASSES" >&2
@@ -119,7 +128,8 @@ export DRJIT_LIBLLVM_PATH
 # --- 3. prism and the exported scene
 CARGO_BUILD_JOBS=${CARGO_BUILD_JOBS:-1} cargo build --release --quiet --bins --example peer_rays
 PRISM=target/release/prism
-if [[ $PGO == 1 ]]; then
+# (Only when a round runs the PGO binary: ONLY may name none of its keys.)
+if [[ " ${KEYS[*]} " == *" prism-pgo-"* ]]; then
     echo "== profile-guided build (scripts/pgo-build.sh)"
     scripts/pgo-build.sh >/dev/null
 fi
