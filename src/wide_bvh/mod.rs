@@ -229,14 +229,20 @@ fn largest(children: &[Range], eligible: impl Fn(&Range) -> bool) -> Option<usiz
 mod tests {
     use super::*;
 
+    /// Uniform numbers in [0, 1) from a 64-bit LCG (Knuth's MMIX
+    /// constants): reproducible inputs for the builder's tests.
+    pub(super) fn uniform(seed: u64) -> impl FnMut() -> f32 {
+        let mut state = seed;
+        move || {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        }
+    }
+
     /// Boxes of a random soup of `n` small triangles in the unit cube, plus
     /// a few flat, long and coincident ones.
     fn soup(n: usize, seed: u64) -> Vec<Aabb> {
-        let mut state = seed;
-        let mut next = move || {
-            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (state >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut next = uniform(seed);
         let mut boxes: Vec<Aabb> = (0..n)
             .map(|_| {
                 let c = Vec3A::new(next(), next(), next());

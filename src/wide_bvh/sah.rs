@@ -285,11 +285,7 @@ mod tests {
     /// (where most boxes fall outside and clamp).
     #[test]
     fn one_axis_bin_matches_all_axes_bins() {
-        let mut state = 7u64;
-        let mut next = move || {
-            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (state >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut next = crate::wide_bvh::tests::uniform(7);
         let mut refs: Vec<PrimRef> = (0..4000)
             .map(|i| {
                 let c = Vec3A::new(next(), next(), next()) * 10.0 - 5.0;
