@@ -565,3 +565,44 @@ fn bad_accessor_indices_and_factors_are_reported() {
     assert!(has(&g.messages, "roughnessFactor [-1.0] is outside [0, 1]"), "{:?}", g.messages);
     assert!(!has(&g.messages, "metallicFactor"), "{:?}", g.messages);
 }
+
+/// Accessors the glTF crate's reader would panic on or cut short: a
+/// byteStride shorter than the element (it panicked), indices running past
+/// their buffer view (read as no index list at all: the triangle soup of
+/// the positions), a zero count, and sparse accessors, whose indices are
+/// not checked. Each is an error naming the accessor.
+#[test]
+fn accessor_layouts_outside_their_views_are_errors() {
+    let cases: [(&str, fn(&mut Value), &str); 5] = [
+        (
+            "POSITION stride 4",
+            |v| v["bufferViews"][1]["byteStride"] = json!(4),
+            "accessors[1]: bufferViews[1].byteStride 4 is shorter than its 12-byte elements",
+        ),
+        (
+            "4 indices in a view of 3",
+            |v| v["accessors"][0]["count"] = json!(4),
+            "accessors[0]: 4 elements of 2 bytes every 2 from byteOffset 0 run past bufferViews[0] (6 bytes)",
+        ),
+        (
+            "index stride 4",
+            |v| v["bufferViews"][0]["byteStride"] = json!(4),
+            "accessors[0]: 3 elements of 2 bytes every 4 from byteOffset 0 run past bufferViews[0] (6 bytes)",
+        ),
+        ("POSITION count 0", |v| v["accessors"][1]["count"] = json!(0), "accessors[1]: count is 0"),
+        (
+            "sparse POSITION",
+            |v| {
+                let sparse = json!({"count": 1, "indices": {"bufferView": 0, "componentType": 5123}, "values": {"bufferView": 1}});
+                v["accessors"][1]["sparse"] = sparse;
+            },
+            "accessors[1]: sparse accessors are not supported",
+        ),
+    ];
+    for (what, edit, expected) in cases {
+        let mut v = read_json(&dir().join("Triangle.gltf"));
+        edit(&mut v);
+        let e = parse(&v, what).err().unwrap_or_else(|| panic!("{what}: loaded"));
+        assert!(e.contains(&format!("primitive 0: {expected}")), "{what}: {e}");
+    }
+}

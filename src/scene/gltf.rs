@@ -20,7 +20,8 @@
 //! have no texture lookup, so a textured material renders with its mean and
 //! the loader says so. Nothing is dropped silently: what prism cannot
 //! represent is an error naming the node or material (points and lines,
-//! directional lights, unsupported required extensions) or a warning.
+//! directional lights, sparse accessors, unsupported required extensions)
+//! or a warning.
 //!
 //! A material's `extras` may carry measured spectra that RGB cannot:
 //! `"extras": {"prism": {"reflectance": S, "emission": S}}` with
@@ -530,6 +531,10 @@ impl Importer {
     /// there is one per position) and the triangulated index list, each
     /// accessor checked against its buffer.
     fn read_primitive(&mut self, prim: &gltf::Primitive, pwhat: &str) -> Result<Mesh, LoadError> {
+        let accessors = [prim.get(&gltf::Semantic::Positions), prim.get(&gltf::Semantic::Normals), prim.indices()];
+        for a in accessors.iter().flatten() {
+            check_layout(a).map_err(|m| self.fail(pwhat, format!("accessors[{}]: {m}", a.index())))?;
+        }
         let (positions, normals, list) = {
             let buffers = &self.buffers;
             let reader = prim.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
@@ -546,9 +551,6 @@ impl Importer {
             };
             return Err(self.fail(pwhat, why));
         };
-        if Some(positions.len()) != prim.get(&gltf::Semantic::Positions).map(|a| a.count()) {
-            return Err(self.fail(pwhat, "the POSITION accessor reaches outside its buffer view"));
-        }
         let normals = if normals.len() == positions.len() {
             normals
         } else {
@@ -557,13 +559,8 @@ impl Importer {
             }
             Vec::new()
         };
-        let list = match list {
-            Some(list) if Some(list.len()) != prim.indices().map(|a| a.count()) => {
-                return Err(self.fail(pwhat, "the index accessor reaches outside its buffer view"));
-            }
-            Some(list) => list,
-            None => (0..positions.len() as u32).collect(),
-        };
+        // `check_layout` made each accessor read exactly `count` elements.
+        let list = list.unwrap_or_else(|| (0..positions.len() as u32).collect());
         if let Some(i) = list.iter().find(|&&i| i as usize >= positions.len()) {
             return Err(self.fail(pwhat, format!("index {i} is out of range ({} positions)", positions.len())));
         }
@@ -874,6 +871,43 @@ fn label(kind: &str, index: usize, name: Option<&str>) -> String {
 
 /// Triangles of a primitive (glTF 2.0 spec 3.7.2.1): a strip's triangle i
 /// is (i, i + 1 + i % 2, i + 2 - i % 2), a fan's is (i + 1, i + 2, 0).
+/// What the `gltf` crate's reader assumes of an accessor and panics on
+/// otherwise (glTF 2.0 spec 3.6.2.4, "Data Alignment", and 5.1 "accessor"):
+/// at least one element, a buffer view stride no shorter than the element,
+/// and its elements inside the view. Sparse accessors are refused: their
+/// indices would have to be checked against `count` as well, and no scene
+/// needs them.
+fn check_layout(a: &gltf::Accessor) -> Result<(), String> {
+    if a.count() == 0 {
+        return Err("count is 0".into());
+    }
+    if a.sparse().is_some() {
+        return Err("sparse accessors are not supported".into());
+    }
+    let Some(view) = a.view() else {
+        return Ok(());
+    };
+    let size = a.size();
+    let stride = view.stride().unwrap_or(size);
+    if stride < size {
+        return Err(format!(
+            "bufferViews[{}].byteStride {stride} is shorter than its {size}-byte elements",
+            view.index()
+        ));
+    }
+    let end = (a.count() - 1).checked_mul(stride).and_then(|n| n.checked_add(a.offset() + size));
+    match end {
+        Some(end) if end <= view.length() => Ok(()),
+        _ => Err(format!(
+            "{} elements of {size} bytes every {stride} from byteOffset {} run past bufferViews[{}] ({} bytes)",
+            a.count(),
+            a.offset(),
+            view.index(),
+            view.length()
+        )),
+    }
+}
+
 fn triangulate(mode: Mode, list: &[u32]) -> Vec<[u32; 3]> {
     match mode {
         Mode::TriangleStrip => {
