@@ -198,11 +198,13 @@ pub fn render_chunked(
 ) -> anyhow::Result<RenderStats> {
     assert!(chunk > 0, "chunks of zero samples");
     let (pool, tiles) = (thread_pool(opts), tile_grid(film.width, film.height));
-    let chunks: Vec<Range<u32>> =
-        samples.clone().step_by(chunk as usize).map(|s| s..s.saturating_add(chunk).min(samples.end)).collect();
-    let bar = progress_bar(opts.progress, (tiles.len() * chunks.len()) as u64);
+    // The chunks are made as they come: a list of them all would take 8
+    // bytes per chunk, 32 GiB for 2^32 one-sample chunks.
+    let n_chunks = (samples.len() as u64).div_ceil(chunk as u64);
+    let bar = progress_bar(opts.progress, tiles.len() as u64 * n_chunks);
     let mut total = RenderStats::default();
-    for c in chunks {
+    for first in samples.clone().step_by(chunk as usize) {
+        let c = first..first.saturating_add(chunk).min(samples.end);
         total.add(&render_impl(scene, integrator, &pool, &bar, &tiles, opts.seed, film, c, None));
         after_chunk(film)?;
     }

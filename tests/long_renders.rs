@@ -270,6 +270,33 @@ fn killed_and_resumed_render_is_bit_identical() {
     let _ = std::fs::remove_dir_all(&d);
 }
 
+/// A checkpointed render of the most samples a pixel can take (2^32 - 1)
+/// starts, and takes its first checkpoint: its one-sample chunks are made
+/// as they come. (A list of them all, 32 GiB, was refused by the allocator
+/// and the process aborted before rendering.)
+#[test]
+fn checkpointed_render_of_2_pow_32_samples_starts() {
+    let d = temp_dir("huge-spp");
+    let out = d.join("huge.exr");
+    let checkpoint = out.with_extension("ckpt");
+    let out_s = s(&out);
+    let mut args = vec!["render", SCENE, "--spp", "4294967295", "--checkpoint-every", "0", "--out", &out_s];
+    args.extend(["--width", "8", "--height", "8", "--quiet"]);
+    let mut child = prism_command(&args).stderr(std::process::Stdio::piped()).spawn().unwrap();
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while !checkpoint.exists() {
+        if let Some(status) = child.try_wait().unwrap() {
+            let o = child.wait_with_output().unwrap();
+            panic!("the render ended ({status}) before its first checkpoint: {}", stderr(&o));
+        }
+        assert!(Instant::now() < deadline, "no checkpoint after 60 s");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let _ = std::fs::remove_dir_all(&d);
+}
+
 /// A truncated, corrupt, foreign or mismatched checkpoint is one clear error
 /// naming the file, and nothing is written; the intact file resumes (a
 /// part's .state is a checkpoint too) to the bits of a full render.
