@@ -59,14 +59,14 @@ impl Integrator for LightTracer {
 
     fn unsamplable(&self, scene: &Scene) -> Vec<String> {
         let mut warnings = Vec::new();
-        let (specular, background) = seen_directly(scene);
+        let specular = specular_in_view(scene);
         if !specular.is_empty() {
             warnings.push(format!(
-                "light tracing cannot see smooth specular surfaces through a pinhole: the material(s) {} seen directly by the camera, and everything seen through them, will be black (use path or bdpt)",
+                "light tracing cannot see smooth specular surfaces through a pinhole: the material(s) {} in the camera's view, and everything seen through them, will be black (use path or bdpt)",
                 specular.join(", ")
             ));
         }
-        if background {
+        if background_seen(scene) {
             warnings.push(
                 "light tracing cannot see the environment directly through a pinhole: the background will be black (use path or bdpt)"
                     .to_string(),
@@ -78,30 +78,53 @@ impl Integrator for LightTracer {
     }
 }
 
-/// Traces a grid of camera rays (at most 64 x 64, through pixel centres) and
-/// returns the purely specular materials they hit first, and whether any ray
-/// escapes to an environment light.
-fn seen_directly(scene: &Scene) -> (Vec<String>, bool) {
+/// The purely specular materials of the triangles in the camera's view:
+/// every such triangle whose projection's bounds meet the image, or which
+/// reaches behind the pinhole from in front of it. Occlusion is not
+/// considered, so a mirror hidden behind a wall is named as well: a grid of
+/// camera rays, which took occlusion into account, missed what lay between
+/// its rays (a mirror strip one pixel high between the rows of a 64 x 64
+/// grid, black in light tracing and unreported).
+fn specular_in_view(scene: &Scene) -> Vec<String> {
     let cam = &scene.camera;
+    let image = (Vec2::ZERO, Vec2::new(cam.width as f32, cam.height as f32));
+    let mut names: Vec<String> = Vec::new();
+    for (v, _, material, _) in scene.triangles() {
+        let m = &scene.materials[material as usize];
+        if m.bsdf.flags().is_non_specular() || names.contains(&m.name) {
+            continue;
+        }
+        let projected = v.map(|p| cam.project(p - cam.position));
+        let in_view = match projected {
+            [Some(a), Some(b), Some(c)] => {
+                let (lo, hi) = (a.min(b).min(c), a.max(b).max(c));
+                lo.cmple(image.1).all() && hi.cmpge(image.0).all()
+            }
+            [None, None, None] => false,
+            _ => true,
+        };
+        if in_view {
+            names.push(m.name.clone());
+        }
+    }
+    names
+}
+
+/// Whether a grid of camera rays (at most 64 x 64, through pixel centres)
+/// finds the environment light in the background.
+fn background_seen(scene: &Scene) -> bool {
+    let cam = &scene.camera;
+    if scene.environment().is_none() {
+        return false;
+    }
     let (nx, ny) = (cam.width.min(64), cam.height.min(64));
-    let mut specular: Vec<String> = Vec::new();
-    let mut background = false;
-    for j in 0..ny {
-        for i in 0..nx {
+    (0..ny).any(|j| {
+        (0..nx).any(|i| {
             let raster = Vec2::new(
                 (i as f32 + 0.5) / nx as f32 * cam.width as f32,
                 (j as f32 + 0.5) / ny as f32 * cam.height as f32,
             );
-            match scene.intersect(&cam.generate_ray(raster)) {
-                None => background |= scene.environment().is_some(),
-                Some(si) => {
-                    let m = &scene.materials[si.material as usize];
-                    if !m.bsdf.flags().is_non_specular() && !specular.contains(&m.name) {
-                        specular.push(m.name.clone());
-                    }
-                }
-            }
-        }
-    }
-    (specular, background)
+            scene.intersect(&cam.generate_ray(raster)).is_none()
+        })
+    })
 }

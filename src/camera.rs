@@ -143,6 +143,15 @@ impl Camera {
     /// Raster position of a direction leaving the pinhole, if inside the image.
     #[inline]
     pub fn raster_of_direction(&self, d: Vec3A) -> Option<Vec2> {
+        let r = self.project(d)?;
+        let inside = (0.0..self.width as f32).contains(&r.x) && (0.0..self.height as f32).contains(&r.y);
+        inside.then_some(r)
+    }
+
+    /// Raster position of a direction leaving the pinhole, inside the image
+    /// or not; None for a direction not in front of it.
+    #[inline]
+    pub fn project(&self, d: Vec3A) -> Option<Vec2> {
         let z = d.dot(self.forward);
         if z <= 0.0 {
             return None;
@@ -152,9 +161,7 @@ impl Camera {
         // half extent in turn took two, in a chain (docs/performance-log.md,
         // "Session 18").
         let (w, h) = (self.width as f32, self.height as f32);
-        let r = Vec2::new(d.dot(self.right), d.dot(self.up)) * self.raster_scale / z + Vec2::new(0.5 * w, 0.5 * h);
-        let inside = (0.0..w).contains(&r.x) && (0.0..h).contains(&r.y);
-        inside.then_some(r)
+        Some(Vec2::new(d.dot(self.right), d.dot(self.up)) * self.raster_scale / z + Vec2::new(0.5 * w, 0.5 * h))
     }
 
     /// Importance We of a unit direction leaving the pinhole (0 outside the

@@ -130,14 +130,20 @@ pub struct Shadow {
 
 impl Shadow {
     /// The segment between two points, each end offset off its own surface
-    /// (pbrt-v4 `SpawnRayTo` from both ends).
+    /// (pbrt-v4 `SpawnRayTo` from both ends), up to the far end's offset
+    /// point. Both ends' triangles and their coplanar runs are skipped and
+    /// each end is moved off its surface by its error bound, so the segment
+    /// needs no further margin: pbrt-v4 stops it at 1 - 1e-4 of its length
+    /// (`ShadowEpsilon`; Mitsuba 3 at 1 - ~9e-4), which hides every occluder
+    /// that near the light from next-event estimation while rays leaving the
+    /// light meet it (a black cover 1e-4 below a lamp 2.5 away passed 88 %
+    /// of the lamp's light to `path`'s NEE and none to light tracing).
     #[inline(always)]
     pub fn segment(a: SurfacePoint, b: SurfacePoint) -> Self {
         let d = b.p - a.p;
         let o = a.spawn_origin(d);
         let target = b.spawn_origin(-d);
-        // pbrt-v4's ShadowEpsilon: stop just short of the far end.
-        Self { ray: Ray { o, d: target - o, skip: [a.slot, b.slot] }, t_max: 1.0 - 1e-4 }
+        Self { ray: Ray { o, d: target - o, skip: [a.slot, b.slot] }, t_max: 1.0 }
     }
 
     /// From a point towards infinity in direction `w` (an infinite light).
