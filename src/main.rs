@@ -275,6 +275,7 @@ fn reference_command(a: ReferenceArgs) -> Result<()> {
     );
     prism::reference::write_reference(&a.out, &image, &meta)?;
     eprintln!("{} passes x {} spp in {:.1} s", a.passes, a.spp, meta.wall_seconds);
+    warn_dropped(&meta.dropped_samples);
     Ok(())
 }
 

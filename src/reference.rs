@@ -4,10 +4,11 @@
 //! and where the numbers came from (integrator, spp, passes, seed, commit,
 //! wall time). Made by `prism reference`; read by tests/agreement.rs.
 
-use crate::film::{read_exr, Outputs};
+use crate::film::{read_exr, DroppedSamples, Film, Outputs};
 use crate::integrators::Integrator;
+use crate::render::RenderOptions;
 use crate::scene::Scene;
-use crate::stats::{pixel_mean_variance, render_passes, BlockStats};
+use crate::stats::{pixel_mean_variance, render_pass_films, BlockStats};
 use anyhow::{ensure, Context, Result};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -31,6 +32,10 @@ pub struct ReferenceMeta {
     pub build_target: String,
     pub wall_seconds: f64,
     pub command: String,
+    /// Samples the passes' films kept out, summed (absent in references
+    /// made before it was recorded, and read as none).
+    #[serde(default)]
+    pub dropped_samples: DroppedSamples,
     /// Per-block mean and standard error of the mean (row-major blocks).
     pub block_mean: Vec<[f64; 3]>,
     pub block_stderr: Vec<[f64; 3]>,
@@ -66,8 +71,12 @@ pub fn make_reference(
 ) -> (Vec<[f32; 3]>, ReferenceMeta) {
     let (w, h) = (scene.camera.width, scene.camera.height);
     let start = Instant::now();
-    let images = render_passes(scene, integrator, spp, passes, seed, threads);
+    let opts = RenderOptions { seed, threads, progress: false };
+    let (films, _) = render_pass_films(scene, integrator, &opts, spp, passes);
     let wall_seconds = start.elapsed().as_secs_f64();
+    let mut dropped_samples = DroppedSamples::default();
+    films.iter().for_each(|f| dropped_samples.merge(&f.dropped));
+    let images: Vec<_> = films.iter().map(Film::image).collect();
     let stats = BlockStats::from_passes(&images, w, h, block);
     let (mean, _) = pixel_mean_variance(&images);
     let meta = ReferenceMeta {
@@ -83,6 +92,7 @@ pub fn make_reference(
         build_target: crate::build_target(),
         wall_seconds,
         command,
+        dropped_samples,
         block_mean: stats.mean,
         block_stderr: stats.stderr,
     };

@@ -83,6 +83,14 @@ const CASES: &[Case] = &[
         words: &["materials.white.k: must be at most 1e6 (max 1e10)"],
     },
     Case {
+        id: "tiny-ior",
+        edits: &[("{\"type\": \"diffuse\", \"reflectance\": 0.5}", "{\"type\": \"dielectric\", \"ior\": 1e-20, \"roughness\": 0.5}")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:3:56:",
+        words: &["materials.white.ior: must be at least 1e-6 (min 1e-20)"],
+    },
+    Case {
         id: "cold-blackbody",
         edits: &[("\"radiance\": 1.0", "\"radiance\": {\"blackbody\": 1}")],
         args: &[],

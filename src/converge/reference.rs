@@ -3,7 +3,7 @@
 //! its origin and its own noise.
 
 use super::{spinner, ConvergeConfig, ReferenceInfo, ReferenceSource, REFERENCE_SEED_OFFSET};
-use crate::film::{ensure_finite, read_exr};
+use crate::film::{ensure_finite, read_exr, DroppedSamples};
 use crate::integrators::{self, IntegratorOptions, MisHeuristic};
 use crate::reference::{make_reference, write_reference, ReferenceMeta};
 use crate::scene::Scene;
@@ -145,6 +145,17 @@ fn origin_notes(
         m.width,
         m.height
     );
+    let d = &m.dropped;
+    if d.total() > 0 {
+        notes.push(format!(
+            "the reference's films dropped {} samples ({} NaN, {} infinite, {} negative): it lacks what they \
+             carried, and the errors measured against it are off by that much",
+            d.total(),
+            d.nan,
+            d.infinite,
+            d.negative
+        ));
+    }
     if m.max_depth.is_some_and(|d| d != max_depth) {
         notes.push(format!(
             "the reference was rendered with max depth {}, this run uses {max_depth}: they estimate different images",
@@ -204,6 +215,8 @@ struct Origin {
     first_sample: u32,
     wall_seconds: Option<f64>,
     noise_floor: Option<f64>,
+    /// Samples its films kept out (none recorded: none).
+    dropped: DroppedSamples,
 }
 
 /// The fields of a render or merge sidecar that `Origin` needs (the rest
@@ -221,6 +234,8 @@ struct RenderSidecar {
     mis: String,
     max_depth: u32,
     sample_ranges: Vec<[u32; 2]>,
+    #[serde(default)]
+    dropped_samples: DroppedSamples,
 }
 
 impl Origin {
@@ -239,6 +254,7 @@ impl Origin {
             first_sample: 0,
             wall_seconds: Some(m.wall_seconds),
             noise_floor: Some(noise_floor(m)),
+            dropped: m.dropped_samples,
         }
     }
 
@@ -258,6 +274,7 @@ impl Origin {
             // resumed, and a merge's none: the reference's cost is unknown.)
             wall_seconds: None,
             noise_floor: None,
+            dropped: r.dropped_samples,
         }
     }
 }

@@ -643,11 +643,17 @@ impl Ctx<'_> {
         Ok(s)
     }
 
-    /// An index of refraction or a conductor's k, at most `MAX_INDEX`.
+    /// An index of refraction or a conductor's k, at most `MAX_INDEX`; an
+    /// index of refraction at least its inverse (a rough dielectric of ior
+    /// 1e-20 turned samples into NaN, as 1 / eta^2 overflowed).
     fn index(&self, path: &[Seg], spec: &SpectrumSpec, usage: Use) -> Result<Spectrum, LoadError> {
         let s = self.spectrum(path, spec, usage)?;
         if s.max_value() > MAX_INDEX {
             return Err(self.err(path, format!("must be at most {MAX_INDEX:e} (max {:e})", s.max_value())));
+        }
+        let min_ior = 1.0 / MAX_INDEX;
+        if usage == Use::Ior && s.min_value() < min_ior {
+            return Err(self.err(path, format!("must be at least {min_ior:e} (min {:e})", s.min_value())));
         }
         Ok(s)
     }
