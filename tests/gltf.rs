@@ -573,7 +573,8 @@ fn bad_accessor_indices_and_factors_are_reported() {
 /// not checked. Each is an error naming the accessor.
 #[test]
 fn accessor_layouts_outside_their_views_are_errors() {
-    let cases: [(&str, fn(&mut Value), &str); 5] = [
+    type Case = (&'static str, fn(&mut Value), &'static str);
+    let cases: [Case; 5] = [
         (
             "POSITION stride 4",
             |v| v["bufferViews"][1]["byteStride"] = json!(4),
