@@ -295,7 +295,10 @@ fn compare_command(image: &Path, reference: &Path) -> Result<()> {
     Ok(())
 }
 
+/// The table's file must be a .bin: `--out scene.json` replaced a scene
+/// with binary data.
 fn rgb_table(res: usize, out: &Path) -> Result<()> {
+    film::ensure_extension("--out", out, "bin")?;
     prism::spectrum::RgbToSpectrumTable::generate(res).write(out)
 }
 

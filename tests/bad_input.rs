@@ -299,6 +299,14 @@ const CASES: &[Case] = &[
         words: &["materials.white.reflectance: a reflectance must not exceed 1"],
     },
     Case {
+        id: "zero-up",
+        edits: &[("\"look_at\": [0, 0, 0],", "\"look_at\": [0, 0, 0], \"up\": [0, 0, 0],")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:2:",
+        words: &["camera.up: up must not be zero"],
+    },
+    Case {
         id: "degenerate-camera",
         edits: &[("\"look_at\": [0, 0, 0]", "\"look_at\": [0, 0, -3]")],
         args: &[],

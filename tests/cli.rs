@@ -385,6 +385,9 @@ fn small_subcommands_refuse_before_writing() {
     fails_with(&["compare", &one, &image("inf.exr", f32::INFINITY)], "inf.exr: 1 pixels are not finite");
     assert!(prism(&["compare", &one, &one]).status.success());
     fails_with(&["rgb-table", "--res", "2", "--out", &path("t.bin")], "2 is not in 3..=256");
+    let scene = write(&d, "kept.json", "{}");
+    fails_with(&["rgb-table", "--res", "3", "--out", &scene], "--out must name a .bin file, got");
+    assert_eq!(std::fs::read_to_string(&scene).unwrap(), "{}", "rgb-table replaced a scene");
     // A reference image beside a part's state would leave it stale.
     std::fs::write(d.join("r.state"), b"a part").unwrap();
     let out = path("r.exr");

@@ -975,6 +975,9 @@ fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
         let field = if c.height == 0 && c.width != 0 { "height" } else { "width" };
         return Err(ctx.err(&with(&cam_path, field), e));
     }
+    if up == Vec3A::ZERO {
+        return Err(ctx.err(&with(&cam_path, "up"), "up must not be zero"));
+    }
     if Camera::frame(look_at.as_dvec3() - position.as_dvec3(), up.as_dvec3()).is_none() {
         return Err(ctx.err(&with(&cam_path, "look_at"), "look_at must differ from position and not be parallel to up"));
     }
