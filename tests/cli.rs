@@ -68,57 +68,26 @@ fn renders_exr_png_and_sidecar() {
 #[test]
 fn dropped_samples_are_reported_by_render_reference_and_converge() {
     let d = temp_dir("dropped");
-    let scene = write(
-        &d,
-        "s.json",
-        r#"{
-  "camera": {"position": [0, 0, -3], "look_at": [0, 0, 0], "fov": 40, "width": 8, "height": 8},
-  "materials": {"white": {"type": "diffuse", "reflectance": 0.5}},
-  "objects": [{"shape": {"type": "sphere", "center": [0, 0, 0], "radius": 1}, "material": "white"}],
-  "lights": [{"type": "point", "position": [0, 2, -2], "intensity": 1e30}]
-}"#,
-    );
+    let bright = r#"{"type": "point", "position": [0, 2, -2], "intensity": 1e30}"#;
+    let text = scenes::TINY_SCENE.replace(r#"{"type": "environment", "radiance": 1.0}"#, bright);
+    assert_ne!(text, scenes::TINY_SCENE);
+    let scene = write(&d, "s.json", &text);
     let sidecar = |name: &str| -> serde_json::Value {
         serde_json::from_str(&std::fs::read_to_string(d.join(name)).unwrap()).unwrap()
     };
-    let (img, reference) = (d.join("img.exr"), d.join("ref.exr"));
-    let o = prism(&["render", &scene, "--spp", "2", "--quiet", "--out", img.to_str().unwrap()]);
+    // (The temporary directory's path has no spaces.)
+    let run = |line: String| prism(&line.split_whitespace().collect::<Vec<_>>());
+    let (img, reference, runs) = (d.join("img.exr"), d.join("ref.exr"), d.join("converge"));
+    let o = run(format!("render {scene} --spp 2 --quiet --out {}", img.display()));
     assert!(o.status.success() && stderr(&o).contains("warning: dropped"), "{}", stderr(&o));
     assert!(sidecar("img.json")["dropped_samples"]["infinite"].as_u64().unwrap() > 0);
-    let o = prism(&[
-        "reference",
-        &scene,
-        "--spp",
-        "1",
-        "--passes",
-        "2",
-        "--width",
-        "8",
-        "--height",
-        "8",
-        "--out",
-        reference.to_str().unwrap(),
-    ]);
+    let o = run(format!("reference {scene} --spp 1 --passes 2 --width 8 --height 8 --out {}", reference.display()));
     assert!(o.status.success() && stderr(&o).contains("warning: dropped"), "{}", stderr(&o));
     assert!(sidecar("ref.json")["dropped_samples"]["infinite"].as_u64().unwrap() > 0);
-    let runs = d.join("converge");
-    let o = prism(&[
-        "converge",
-        &scene,
-        "--integrators",
-        "path",
-        "--spp",
-        "1",
-        "--reference-spp",
-        "2",
-        "--width",
-        "8",
-        "--height",
-        "8",
-        "--quiet",
-        "--out",
-        runs.to_str().unwrap(),
-    ]);
+    let o = run(format!(
+        "converge {scene} --integrators path --spp 1 --reference-spp 2 --width 8 --height 8 --quiet --out {}",
+        runs.display()
+    ));
     let text = std::fs::read_to_string(runs.join("report.md")).unwrap_or_default();
     assert!(text.contains("the reference's films dropped"), "{}\n{text}", stderr(&o));
     let _ = std::fs::remove_dir_all(&d);
