@@ -207,6 +207,22 @@ const CASES: &[Case] = &[
         words: &["materials", "duplicate name \"white\""],
     },
     Case {
+        id: "scale-type",
+        edits: &[("\"material\": \"white\"}", "\"material\": \"white\", \"transform\": {\"scale\": [1, 2]}}")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:4:",
+        words: &["objects[0].transform.scale: expected a number or [x, y, z]"],
+    },
+    Case {
+        id: "empty-mesh-file",
+        edits: &[("{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1}", "{\"type\": \"obj\", \"file\": \"\"}")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:4:",
+        words: &["objects[0].shape.file: the file name is empty"],
+    },
+    Case {
         id: "missing-mesh",
         edits: &[(
             "{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1}",
@@ -649,4 +665,20 @@ fn error_table_matches_the_tests() {
         assert!(rows.iter().any(|r| r == c.id), "case {} has no row in the Errors table", c.id);
     }
     assert!(rows.len() >= CASES.len() + 8, "the table should also list the cases tested in tests/cli.rs");
+}
+
+/// A UTF-8 byte order mark before the scene is skipped (it was "1:1:
+/// expected value"), and positions on the first line stay the columns an
+/// editor shows. Control: the same text with any other character first
+/// is an error.
+#[test]
+fn a_byte_order_mark_is_skipped() {
+    let parse = |text: &str| prism::scene::parse_scene(text, "s.json", Path::new("."));
+    assert!(parse(&format!("\u{feff}{}", scenes::TINY_SCENE)).is_ok());
+    let bad_first_line = r#"{"camera": 1}"#;
+    let plain = parse(bad_first_line).err().unwrap().to_string();
+    let marked = parse(&format!("\u{feff}{bad_first_line}")).err().unwrap().to_string();
+    assert!(plain.starts_with("s.json:1:"), "{plain}");
+    assert_eq!(marked, plain);
+    assert!(parse(&format!("\u{200b}{}", scenes::TINY_SCENE)).is_err());
 }

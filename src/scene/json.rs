@@ -300,7 +300,7 @@ struct TransformSpec {
 }
 
 #[derive(Deserialize)]
-#[serde(untagged)]
+#[serde(untagged, expecting = "expected a number or [x, y, z]")]
 enum ScaleSpec {
     Uniform(f32),
     PerAxis([f32; 3]),
@@ -778,6 +778,9 @@ impl Ctx<'_> {
     }
 
     fn obj(&self, path: &[Seg], file: &str) -> Result<Mesh, LoadError> {
+        if file.is_empty() {
+            return Err(self.err(path, "the file name is empty"));
+        }
         let full: PathBuf = self.dir.join(file);
         // Only regular files: a directory fails late, /dev/zero or a FIFO would hang the loader.
         if !full.is_file() {
@@ -886,6 +889,9 @@ pub fn load_scene(path: &Path) -> Result<SceneBuilder, LoadError> {
 /// Builds a scene from JSON text; `file` names it in errors and `dir`
 /// resolves relative mesh paths.
 pub fn parse_scene(text: &str, file: &str, dir: &Path) -> Result<SceneBuilder, LoadError> {
+    // A UTF-8 byte order mark (some Windows editors write one) is not JSON;
+    // without it, positions on the first line are the columns an editor shows.
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let syntax = |field: String, e: serde_json::Error| LoadError {
         file: file.to_string(),
         // serde_json counts columns from 0 at the start of a line (e.g. at EOF there).
