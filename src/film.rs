@@ -73,6 +73,16 @@ impl DroppedSamples {
     }
 }
 
+/// The samples several films kept out (the passes of one render).
+impl std::iter::Sum for DroppedSamples {
+    fn sum<I: Iterator<Item = Self>>(iter: I) -> Self {
+        iter.fold(Self::default(), |mut total, d| {
+            total.merge(&d);
+            total
+        })
+    }
+}
+
 /// Fractional bits of the film's fixed-point sums: a resolution of 2^-60
 /// keeps every f32 sample above 2^-36 exact and truncates smaller ones by less
 /// than 10^-18, far below what an f32 pixel can show.

@@ -530,8 +530,7 @@ fn render_passes(
     let (mean, variance) = pixel_mean_variance(&films.iter().map(Film::image).collect::<Vec<_>>());
     let path = a.out.with_extension("var.exr");
     out.exr(&path, s.identity.width, s.identity.height, &variance)?;
-    let mut dropped = DroppedSamples::default();
-    films.iter().for_each(|f| dropped.merge(&f.dropped));
+    let dropped = films.iter().map(|f| f.dropped).sum();
     let mut sidecar = Sidecar::new(s.identity.clone(), s.spp as u64, std::slice::from_ref(&(0..s.spp)), dropped);
     sidecar.passes = Some(k);
     sidecar.variance = Some(file_name(&path));

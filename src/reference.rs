@@ -74,8 +74,7 @@ pub fn make_reference(
     let opts = RenderOptions { seed, threads, progress: false };
     let (films, _) = render_pass_films(scene, integrator, &opts, spp, passes);
     let wall_seconds = start.elapsed().as_secs_f64();
-    let mut dropped_samples = DroppedSamples::default();
-    films.iter().for_each(|f| dropped_samples.merge(&f.dropped));
+    let dropped_samples = films.iter().map(|f| f.dropped).sum();
     let images: Vec<_> = films.iter().map(Film::image).collect();
     let stats = BlockStats::from_passes(&images, w, h, block);
     let (mean, _) = pixel_mean_variance(&images);

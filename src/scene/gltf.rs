@@ -869,8 +869,6 @@ fn label(kind: &str, index: usize, name: Option<&str>) -> String {
     }
 }
 
-/// Triangles of a primitive (glTF 2.0 spec 3.7.2.1): a strip's triangle i
-/// is (i, i + 1 + i % 2, i + 2 - i % 2), a fan's is (i + 1, i + 2, 0).
 /// What the `gltf` crate's reader assumes of an accessor and panics on
 /// otherwise (glTF 2.0 spec 3.6.2.4, "Data Alignment", and 5.1 "accessor"):
 /// at least one element, a buffer view stride no shorter than the element,
@@ -908,6 +906,8 @@ fn check_layout(a: &gltf::Accessor) -> Result<(), String> {
     }
 }
 
+/// Triangles of a primitive (glTF 2.0 spec 3.7.2.1): a strip's triangle i
+/// is (i, i + 1 + i % 2, i + 2 - i % 2), a fan's is (i + 1, i + 2, 0).
 fn triangulate(mode: Mode, list: &[u32]) -> Vec<[u32; 3]> {
     match mode {
         Mode::TriangleStrip => {
