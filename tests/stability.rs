@@ -616,6 +616,14 @@ fn bad_numbers_degenerate_geometry() {
     .concat();
     all_sane("zero-area triangles", &stage("", &degenerate, "", None), 16);
 
+    // A sphere flattened onto the floor (a disk of two faces 1e-20 above
+    // it): segments 1e-20 long beside ones of units put density ratios
+    // beyond f32 (bdpt's MIS weights were NaN, `ratios`).
+    let flat = r#",
+    {"shape": {"type": "sphere", "center": [0, 2, 0], "radius": 0.8, "subdivisions": 3}, "material": "white",
+     "transform": {"scale": [1, 1e-20, 1]}}"#;
+    all_sane("sphere flattened onto the floor", &stage("", flat, "", None), 16);
+
     // Shading normals: all zero; one zero; opposite to the geometric normal;
     // zero under a transform (normalised to NaN); perpendicular to the surface.
     let zero = "[[0, 0, 0], [0, 0, 0], [0, 0, 0], [0, 0, 0]]";
