@@ -51,9 +51,9 @@ use crate::path::{
 use crate::render::{Splat, StrategyRecord, Workspace};
 use crate::sampling::Sampler;
 use crate::scene::Scene;
-use crate::select::select_f64;
+use crate::select::select_f32;
 use crate::spectrum::{SampledSpectrum, SampledWavelengths};
-use glam::{DVec4, UVec2, Vec2, Vec4};
+use glam::{UVec2, Vec2, Vec4};
 
 pub struct Bdpt {
     max_depth: u32,
@@ -268,11 +268,10 @@ pub enum Subpath {
 }
 
 /// A delta density (stored as 0) becomes 1, so it cancels in the ratios;
-/// a density that overflowed f32 becomes f32::MAX (each lane, widened to
-/// f64 for `ratios`).
+/// a density that overflowed f32 becomes f32::MAX (each lane).
 #[inline]
-fn remap0(x: Vec4) -> DVec4 {
-    Vec4::select(x.cmpeq(Vec4::ZERO), Vec4::ONE, x).min(Vec4::splat(f32::MAX)).as_dvec4()
+fn remap0(x: Vec4) -> Vec4 {
+    Vec4::select(x.cmpeq(Vec4::ZERO), Vec4::ONE, x).min(Vec4::splat(f32::MAX))
 }
 
 /// R_j of `init_mis` for each lane's densities: the ratio of the densities
@@ -281,16 +280,21 @@ fn remap0(x: Vec4) -> DVec4 {
 /// a product of ratios to the product of their images, so the sums can be
 /// built factor by factor).
 ///
-/// In f64, as are the sums built from them: the densities are positive
-/// finite f32 values after `remap0`, so a ratio lies in [1e-84, 1e84] and
-/// its image under the power heuristic in [1e-167, 1e167], positive and
-/// finite, and no product of ratios with a sum in [0, inf] is NaN. In f32
-/// the square of a ratio over- or underflows as soon as one segment is
-/// ~1e-10 of its neighbour's length (a surface 1e-18 above the floor of a
-/// 500-unit room gave 1e35 / 1e-7), and 0 x inf made the weight NaN.
+/// Saturated to the normal f32 range [1.2e-38, 3.4e38], so that no product
+/// of a ratio with a sum in [0, inf] is NaN and every weight lies in
+/// [0, 1]. Unsaturated, the power heuristic's square of a ratio beyond
+/// ~1e19 overflowed, one below ~1e-19 underflowed to 0, and 0 x inf made
+/// weights NaN: a sphere flattened onto a floor, 1e-18 above it in a
+/// 500-unit room, gave densities of 1e35 beside 1e-7. Within the range
+/// nothing changes (the Cornell box's images are bit-identical); beyond it
+/// the weights of a path's strategies may no longer sum to exactly one,
+/// which needs segments ~1e-10 of their neighbours' length: geometry below
+/// f32's resolution, where the estimators disagree in any case
+/// (docs/scene-format.md). f64 sums would be exact further out but cost
+/// 3.7 % of a sample's instructions (docs/performance-log.md, session 29).
 #[inline]
-fn ratios(h: MisHeuristic, rev: Vec4, fwd: Vec4) -> DVec4 {
-    h.terms(remap0(rev) / remap0(fwd))
+fn ratios(h: MisHeuristic, rev: Vec4, fwd: Vec4) -> Vec4 {
+    h.terms(remap0(rev) / remap0(fwd)).clamp(Vec4::splat(f32::MIN_POSITIVE), Vec4::splat(f32::MAX))
 }
 
 /// Sets the recursive MIS quantities of every vertex of a subpath v_0 ..
@@ -331,7 +335,7 @@ pub fn init_mis(scene: &Scene, path: &mut [Vertex], subpath: Subpath, h: MisHeur
             0 => 0.0,
             _ => {
                 let prev = &path[m - 1];
-                let allowed = (prev.d_vcm != 0.0 && !prev.delta) as u8 as f64;
+                let allowed = (prev.d_vcm != 0.0 && !prev.delta) as u8 as f32;
                 if m >= 2 && prev.d_vc != 0.0 {
                     allowed
                         + ratios(h, Vec4::splat(path[m - 2].pdf_rev), Vec4::splat(path[m - 2].pdf_fwd)).x * prev.d_vc
@@ -386,7 +390,7 @@ impl Reverse {
 struct End {
     pdf_fwd: f32,
     d_vcm: f32,
-    d_vc: f64,
+    d_vc: f32,
     prev_pdf_fwd: f32,
 }
 
@@ -403,12 +407,12 @@ impl End {
     /// in ratio form) from the ratios R at the connection vertex (`r`) and
     /// at its predecessor (`r_prev`).
     #[inline]
-    fn sum(&self, r: f64, r_prev: f64) -> f64 {
+    fn sum(&self, r: f32, r_prev: f32) -> f32 {
         // Both terms are computed and the zero cases selected: whether d_vc
         // or the sum is 0 depends on the vertices' kinds, in no order a
         // predictor learns.
-        let inner = self.d_vcm as f64 + select_f64(self.d_vc != 0.0, r_prev * self.d_vc, 0.0);
-        select_f64(inner != 0.0, r * inner, 0.0)
+        let inner = self.d_vcm + select_f32(self.d_vc != 0.0, r_prev * self.d_vc, 0.0);
+        select_f32(inner != 0.0, r * inner, 0.0)
     }
 }
 
@@ -442,7 +446,7 @@ impl Ends {
         let num = Vec4::new(rev.pt, rev.pt_minus, rev.qs, rev.qs_minus);
         let den = Vec4::new(c.pdf_fwd, c.prev_pdf_fwd, l.pdf_fwd, l.prev_pdf_fwd);
         let r = ratios(h, num, den);
-        (1.0 / (1.0 + c.sum(r.x, r.y) + l.sum(r.z, r.w))) as f32
+        1.0 / (1.0 + c.sum(r.x, r.y) + l.sum(r.z, r.w))
     }
 }
 
@@ -489,23 +493,25 @@ mod tests {
         let v = remap0(Vec4::new(0.0, 0.25, -0.0, 3.0)).to_array();
         assert_eq!(v, [1.0, 0.25, 1.0, 3.0]);
         let v = remap0(Vec4::new(f32::INFINITY, f32::MAX, 1e-44, 0.0)).to_array();
-        assert_eq!(v, [f32::MAX as f64, f32::MAX as f64, 1e-44f32 as f64, 1.0]);
+        assert_eq!(v, [f32::MAX, f32::MAX, 1e-44, 1.0]);
     }
 
     /// Densities from a segment 1e-18 long next to ones of hundreds of units
-    /// (a NaN sample of a flattened mesh on a floor): the ratio at the
-    /// connection vertex underflows f32 when squared and its predecessor's
-    /// overflows, so an f32 sum was 0 x inf (NaN). The weight must be the
-    /// exact 1 / (1 + r (1 + r_prev d_vc)), r = (5.5e-44)^2 and
-    /// r_prev = (1e38 / 1e-6)^2, whose product ~30 no f32 holds.
+    /// (a NaN sample of a flattened mesh on a floor): the connection
+    /// vertex's squared ratio (5.5e-44)^2 underflows f32 and its
+    /// predecessor's (1e38 / 1e-6)^2 overflows; unsaturated, the sum was
+    /// 0 x inf. Saturated, the weight is 1 / (1 + 2^-126 (1 + f32::MAX)).
     #[test]
-    fn extreme_density_ratios_give_the_exact_weight() {
+    fn extreme_density_ratios_give_a_weight_in_0_1() {
         let camera = End { pdf_fwd: 1.0, d_vcm: 1.0, d_vc: 1.0, prev_pdf_fwd: 1e-6 };
         let ends = Ends { light: End::NONE, camera };
         let rev = Reverse { pt: 5.5e-44, pt_minus: 1e38, ..Reverse::default() };
-        let (r, r_prev) = ((5.5e-44f32 as f64).powi(2), (1e38f32 as f64 / 1e-6f32 as f64).powi(2));
-        let exact = 1.0 / (1.0 + r * (1.0 + r_prev));
         let w = ends.weight(&rev, MisHeuristic::Power);
-        assert!((w as f64 - exact).abs() <= 1e-6 * exact, "weight {w}, exact {exact}");
+        let saturated = 1.0 / (1.0 + f32::MIN_POSITIVE as f64 * (1.0 + f32::MAX as f64));
+        assert!((w as f64 - saturated).abs() <= 1e-6, "weight {w}, expected {saturated}");
+        for h in [MisHeuristic::Balance, MisHeuristic::Uniform] {
+            let w = ends.weight(&rev, h);
+            assert!((0.0..=1.0).contains(&w), "{h:?}: weight {w}");
+        }
     }
 }

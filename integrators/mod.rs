@@ -14,7 +14,7 @@ use crate::render::Workspace;
 use crate::sampling::Sampler;
 use crate::scene::Scene;
 use crate::spectrum::{SampledSpectrum, SampledWavelengths};
-use glam::{DVec4, UVec2};
+use glam::{UVec2, Vec4};
 
 /// One unbiased estimator of the pixel integral (box filter, CIE-weighted
 /// spectral radiance, see ARCHITECTURE.md).
@@ -93,17 +93,17 @@ impl MisHeuristic {
     /// What a strategy of relative density r = p_k / p_s adds to the
     /// denominator of strategy s's weight.
     #[inline]
-    pub fn term(self, r: f64) -> f64 {
-        self.terms(DVec4::splat(r)).x
+    pub fn term(self, r: f32) -> f32 {
+        self.terms(Vec4::splat(r)).x
     }
 
     /// `term` of each lane.
     #[inline]
-    pub fn terms(self, r: DVec4) -> DVec4 {
+    pub fn terms(self, r: Vec4) -> Vec4 {
         match self {
             MisHeuristic::Power => r * r,
             MisHeuristic::Balance => r,
-            MisHeuristic::Uniform => DVec4::select(r.cmpgt(DVec4::ZERO), DVec4::ONE, DVec4::ZERO),
+            MisHeuristic::Uniform => Vec4::select(r.cmpgt(Vec4::ZERO), Vec4::ONE, Vec4::ZERO),
         }
     }
 }

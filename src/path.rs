@@ -113,7 +113,7 @@ pub struct Vertex {
     /// BDPT's recursive MIS quantities, set after the walk by
     /// `integrators::bdpt` (which explains them); zero until then.
     pub d_vcm: f32,
-    pub d_vc: f64,
+    pub d_vc: f32,
 }
 
 /// The straight segment from a vertex to `next` (`Vertex::segment_to`).
@@ -227,7 +227,8 @@ impl Vertex {
 
     /// Unit direction from this vertex towards `next`, and 1 / d^2 (1 when
     /// `next` is at infinity); None for coincident points, and for points
-    /// so close (d < ~5e-20) that 1 / d^2 overflows f32.
+    /// so close (d < 1.1e-19) that 1 / d^2 overflows f32 or would not be
+    /// normal.
     #[inline]
     pub fn direction_to(&self, next: &Vertex) -> Option<(Vec3A, f32)> {
         if next.is_infinite() {
@@ -238,11 +239,12 @@ impl Vertex {
         }
         let d = next.p() - self.p();
         let d2 = d.length_squared();
-        let inv_d2 = 1.0 / d2;
-        if !inv_d2.is_finite() || !d2.is_finite() {
+        // Below the normal range 1 / d^2 overflows (and 0 or NaN has no
+        // direction).
+        if !(f32::MIN_POSITIVE..=f32::MAX).contains(&d2) {
             return None;
         }
-        Some((d / d2.sqrt(), inv_d2))
+        Some((d / d2.sqrt(), 1.0 / d2))
     }
 
     /// The segment to `next`, with the factors that convert densities of

@@ -14,13 +14,6 @@ pub fn select_f32(c: bool, a: f32, b: f32) -> f32 {
     Vec4::select(BVec4A::splat(c), Vec4::splat(a), Vec4::splat(b)).x
 }
 
-/// `if c { a } else { b }` for f64, by an all-ones or all-zeros mask.
-#[inline(always)]
-pub fn select_f64(c: bool, a: f64, b: f64) -> f64 {
-    let m = 0u64.wrapping_sub(c as u64);
-    f64::from_bits((a.to_bits() & m) | (b.to_bits() & !m))
-}
-
 /// `if c { a } else { b }` by an all-ones or all-zeros mask.
 #[inline(always)]
 pub fn select_u32(c: bool, a: u32, b: u32) -> u32 {
@@ -41,9 +34,6 @@ mod tests {
             for &b in &values {
                 assert_eq!(select_f32(true, a, b).to_bits(), a.to_bits());
                 assert_eq!(select_f32(false, a, b).to_bits(), b.to_bits());
-                let (da, db) = (a as f64, b as f64);
-                assert_eq!(select_f64(true, da, db).to_bits(), da.to_bits());
-                assert_eq!(select_f64(false, da, db).to_bits(), db.to_bits());
                 let (ua, ub) = (a.to_bits(), b.to_bits());
                 assert_eq!(select_u32(true, ua, ub), ua);
                 assert_eq!(select_u32(false, ua, ub), ub);

@@ -252,6 +252,14 @@ fn densities(scene: &Scene, x: &[Vertex], lambda: &SampledWavelengths) -> (Vec<f
     (pc, pl)
 }
 
+fn remap0_f32(x: f32) -> f32 {
+    if x == 0.0 {
+        1.0
+    } else {
+        x
+    }
+}
+
 /// The MIS weight as pbrt-v3 `MISWeight` computes it (generalised to the
 /// three heuristics): both subpaths walked for the strategy, the four
 /// densities at the connection from `pdf` with positional directions. The
@@ -266,7 +274,7 @@ fn pbrt_mis_weight(
     t: usize,
     heuristic: MisHeuristic,
     lambda: &SampledWavelengths,
-) -> f64 {
+) -> f32 {
     use TransportMode::{Importance, Radiance};
     let pt = if t == 1 { sampled.unwrap() } else { &camera[t - 1] };
     let qs = match s {
@@ -297,7 +305,7 @@ fn pbrt_mis_weight(
         } else {
             v.pdf_rev
         };
-        r *= remap0(rev) / remap0(v.pdf_fwd);
+        r *= remap0_f32(rev) / remap0_f32(v.pdf_fwd);
         let delta = (i != t - 1 && v.delta) || camera[i - 1].delta;
         let pinhole_sees_infinity = i == 1 && v.is_infinite();
         if !delta && !pinhole_sees_infinity {
@@ -314,7 +322,7 @@ fn pbrt_mis_weight(
         } else {
             v.pdf_rev
         };
-        r *= remap0(rev) / remap0(v.pdf_fwd);
+        r *= remap0_f32(rev) / remap0_f32(v.pdf_fwd);
         let delta_prev = if i > 0 { light[i - 1].delta } else { v.is_delta_light(scene) };
         if !((i != s - 1 && v.delta) || delta_prev) {
             sum += heuristic.term(r);
@@ -450,7 +458,7 @@ fn check_path(scene: &Scene, x: &[Vertex], lambda: &SampledWavelengths, out: &mu
             sum += w;
             let direct = h(pt) / total;
             out.worst_formula = out.worst_formula.max((w - direct).abs() / direct.max(1e-3));
-            let reference = pbrt_mis_weight(scene, &light, &camera, sampled.as_ref(), s, t, mis, lambda);
+            let reference = pbrt_mis_weight(scene, &light, &camera, sampled.as_ref(), s, t, mis, lambda) as f64;
             out.worst_reference = out.worst_reference.max((w - reference).abs() / reference.max(1e-3));
             if mis == MisHeuristic::Power {
                 let (light, camera, sampled) = split(scene, x, &pc, &pl, t, MisHeuristic::Balance);
@@ -510,7 +518,7 @@ fn walk_weights(
                 _ => None,
             };
             let w = mis_weight(scene, lig, cam, sampled.as_ref(), s, t, mis, lambda) as f64;
-            let reference = pbrt_mis_weight(scene, lig, cam, sampled.as_ref(), s, t, mis, lambda);
+            let reference = pbrt_mis_weight(scene, lig, cam, sampled.as_ref(), s, t, mis, lambda) as f64;
             let d = (w - reference).abs() / reference.max(1e-3);
             out.walk_checked += 1;
             out.walk_off += (d > 1e-3) as usize;
