@@ -136,25 +136,28 @@ fn light_tracing_warns_about_what_a_pinhole_cannot_see() {
     // two walls that fill the rest of the image: the rows of pixel centres
     // on either side of it hit a wall, so the 64 x 64 grid of rays that
     // made this check until session 29 (rows 2 + 4j) missed it. A black
-    // sky is not named.
-    let sliver = |sky: f32| {
+    // sky is not named, nor a sky the walls hide.
+    // Walls at z = 0 spanning x in [-9, 9] and y in each (y0, y1).
+    let behind_walls = |walls: &[(f32, f32)], sky: f32| {
         let camera = Camera::new(Vec3A::new(0.0, 0.0, -4.0), Vec3A::ZERO, Vec3A::Y, 60.0, 256, 256);
         let mut b = SceneBuilder::new(camera);
         let m = b.material("white", Bsdf::Diffuse(Diffuse::new(Spectrum::Constant(1.0))));
-        let wall = |y0: f32, y1: f32| {
-            Mesh::quad([[-9.0, y0], [9.0, y0], [9.0, y1], [-9.0, y1]].map(|[x, y]| Vec3A::new(x, y, 0.0)))
-        };
-        b.mesh("upper", wall(0.0181, 9.0), m, None);
-        b.mesh("lower", wall(-9.0, 0.0), m, None);
+        for (k, &(y0, y1)) in walls.iter().enumerate() {
+            let corners = [[-9.0, y0], [9.0, y0], [9.0, y1], [-9.0, y1]].map(|[x, y]| Vec3A::new(x, y, 0.0));
+            b.mesh(&format!("wall {k}"), Mesh::quad(corners), m, None);
+        }
         b.environment("sky", Spectrum::Constant(sky));
         b.build()
     };
-    let s = sliver(1.0);
+    let sliver = [(0.0181, 9.0), (-9.0, 0.0)];
+    let s = behind_walls(&sliver, 1.0);
     let escapes = |y: f32| s.intersect(&s.camera.generate_ray(glam::Vec2::new(128.5, y))).is_none();
     assert!(escapes(127.5) && !escapes(126.0) && !escapes(130.0), "the sliver is not where the test needs it");
     let w = lt.unsamplable(&s);
     assert!(w.iter().any(|m| m.contains("environment \"sky\"")), "a sliver of background not reported: {w:?}");
-    assert!(lt.unsamplable(&sliver(0.0)).is_empty(), "a black environment was named");
+    assert!(lt.unsamplable(&behind_walls(&sliver, 0.0)).is_empty(), "a black environment was named");
+    let hidden = lt.unsamplable(&behind_walls(&[(-9.0, 9.0)], 1.0));
+    assert!(hidden.is_empty(), "a sky behind a wall that fills the view was named: {hidden:?}");
     assert!(integrator("bdpt").unsamplable(&scene("furnace.json", 32, 32)).is_empty());
 
     // A scene so large (an object at 1e20) that light paths from the
