@@ -227,8 +227,8 @@ impl Vertex {
 
     /// Unit direction from this vertex towards `next`, and 1 / d^2 (1 when
     /// `next` is at infinity); None for coincident points, and for points
-    /// so close (d < 1.1e-19) that 1 / d^2 overflows f32 or would not be
-    /// normal.
+    /// so close that d^2 is below the normal f32 range (d < 1.1e-19), where
+    /// 1 / d^2 may overflow.
     #[inline]
     pub fn direction_to(&self, next: &Vertex) -> Option<(Vec3A, f32)> {
         if next.is_infinite() {
@@ -239,8 +239,6 @@ impl Vertex {
         }
         let d = next.p() - self.p();
         let d2 = d.length_squared();
-        // Below the normal range 1 / d^2 overflows (and 0 or NaN has no
-        // direction).
         if !(f32::MIN_POSITIVE..=f32::MAX).contains(&d2) {
             return None;
         }
