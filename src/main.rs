@@ -244,9 +244,7 @@ fn main() -> ExitCode {
 
 fn reference_command(a: ReferenceArgs) -> Result<()> {
     let command = std::env::args().collect::<Vec<_>>().join(" ");
-    if a.spp == 0 || a.passes < 2 || a.block == 0 || a.width % a.block != 0 || a.height % a.block != 0 {
-        bail!("need --spp >= 1, --passes >= 2, and --width/--height multiples of --block");
-    }
+    check_reference_counts(&a)?;
     Camera::check_resolution(a.width, a.height).map_err(|e| anyhow!("--width, --height: {e}"))?;
     check_pass_memory(a.passes, a.width, a.height).map_err(|e| anyhow!("--passes: {e}"))?;
     check_threads(a.threads)?;
@@ -276,6 +274,29 @@ fn reference_command(a: ReferenceArgs) -> Result<()> {
     prism::reference::write_reference(&a.out, &image, &meta)?;
     eprintln!("{} passes x {} spp in {:.1} s", a.passes, a.spp, meta.wall_seconds);
     warn_dropped(&meta.dropped_samples);
+    Ok(())
+}
+
+/// `prism reference`'s counts one at a time, so the message names the flag
+/// at fault and its value.
+fn check_reference_counts(a: &ReferenceArgs) -> Result<()> {
+    at_least("--spp", a.spp, 1, "")?;
+    at_least("--passes", a.passes, 2, TWO_PASSES)?;
+    at_least("--block", a.block, 1, "")?;
+    // The sidecar's statistics are of whole blocks of --block x --block pixels.
+    for (flag, n) in [("--width", a.width), ("--height", a.height)] {
+        ensure!(n % a.block == 0, "{flag} {n} is not a multiple of --block {}", a.block);
+    }
+    Ok(())
+}
+
+/// Why `--passes` must be at least 2, for `at_least`.
+const TWO_PASSES: &str = " (a variance needs two passes)";
+
+/// `flag` must be at least `min`; `why` (empty, or " (reason)") follows the
+/// bound in the message.
+fn at_least(flag: &str, value: u32, min: u32, why: &str) -> Result<()> {
+    ensure!(value >= min, "{flag} must be at least {min}{why}, got {value}");
     Ok(())
 }
 
@@ -318,11 +339,9 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
     let defaults = builder.defaults.clone();
     let name = a.integrator.clone().or(defaults.integrator).unwrap_or_else(|| "path".to_string());
     let spp = a.spp.or(defaults.spp).unwrap_or(16);
-    if spp == 0 {
-        bail!("--spp must be at least 1");
-    }
-    if a.passes.is_some_and(|k| k < 2) {
-        bail!("--passes must be at least 2 (a variance needs two passes)");
+    at_least("--spp", spp, 1, "")?;
+    if let Some(k) = a.passes {
+        at_least("--passes", k, 2, TWO_PASSES)?;
     }
     if a.checkpoint_every.is_some_and(|s| Duration::try_from_secs_f64(s).is_err()) {
         bail!("--checkpoint-every must be a number of seconds >= 0 (below 2^64)");

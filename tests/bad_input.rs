@@ -67,6 +67,26 @@ const CASES: &[Case] = &[
         words: &["spectra.x: a spectrum value must be a finite number >= 0, got -1"],
     },
     Case {
+        // Reported where the names are defined, not where the first is used (line 7).
+        id: "spectrum-cycle",
+        edits: &[
+            ("  \"materials\"", "  \"spectra\": {\n    \"a\": \"b\",\n    \"b\": \"a\"\n  },\n  \"materials\""),
+            ("\"reflectance\": 0.5", "\"reflectance\": \"a\""),
+        ],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:4:10:",
+        words: &["spectra.a: spectra \"a\" -> \"b\" -> \"a\" form a cycle"],
+    },
+    Case {
+        id: "spectrum-names-itself",
+        edits: &[("  \"materials\"", "  \"spectra\": {\"x\": \"x\"},\n  \"materials\"")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:3:20:",
+        words: &["spectra.x: spectrum \"x\" names itself"],
+    },
+    Case {
         id: "negative-wavelengths",
         edits: &[("\"reflectance\": 0.5", "\"reflectance\": {\"wavelengths\": [-500, -400], \"values\": [0.5, 0.2]}")],
         args: &[],
@@ -123,6 +143,45 @@ const CASES: &[Case] = &[
         words: &["camera.position: numbers must be finite"],
     },
     Case {
+        // serde's arrays stop after 3 and called the 4th "trailing characters".
+        id: "vector-too-long",
+        edits: &[("[0, 0, -3]", "[0, 0, -3, 1]")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:2:",
+        words: &["camera.position: expected 3 numbers [x, y, z], got 4"],
+    },
+    Case {
+        id: "vector-too-short",
+        edits: &[("[0, 0, -3]", "[0, -3]")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:2:",
+        words: &["camera.position: expected 3 numbers [x, y, z], got 2"],
+    },
+    Case {
+        id: "quad-corner-count",
+        edits: &[(
+            "{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1}",
+            "{\"type\": \"quad\", \"corners\": [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 0]]}",
+        )],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:4:",
+        words: &["objects[0].shape.corners: expected 4 points [x, y, z], got 5"],
+    },
+    Case {
+        id: "triangle-index-count",
+        edits: &[(
+            "{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1}",
+            "{\"type\": \"mesh\", \"positions\": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], \"indices\": [[0, 1, 2, 0]]}",
+        )],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:4:",
+        words: &["objects[0].shape.indices[0]: expected 3 vertex indices, got 4"],
+    },
+    Case {
         id: "spectrum-overflow",
         edits: &[("\"radiance\": 1.0", "\"radiance\": {\"rgb\": [1, 1, 1], \"scale\": 3e38}")],
         args: &[],
@@ -147,6 +206,14 @@ const CASES: &[Case] = &[
         words: &[
             "materials.white.reflectance: invalid type: sequence, expected a number, a spectrum name, or an object with one of",
         ],
+    },
+    Case {
+        id: "rgb-length",
+        edits: &[("\"radiance\": 1.0", "\"radiance\": {\"rgb\": [1, 1, 1, 1]}")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:5:",
+        words: &["lights[0].radiance: \"rgb\": expected 3 numbers [r, g, b], got 4"],
     },
     Case {
         // Inside a tagged object (a shape): the error is at the value's own
@@ -361,6 +428,32 @@ const CASES: &[Case] = &[
         out: "out.exr",
         position: "s.json:5:",
         words: &["render.spp: spp must be at least 1"],
+    },
+    Case {
+        // 2^64: serde_json reads an integer beyond u64 as a float, and the
+        // message was "invalid type: floating point".
+        id: "seed-beyond-u64",
+        edits: &[("\"lights\"", "\"render\": {\"seed\": 18446744073709551616},\n  \"lights\"")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:5:",
+        words: &["render.seed: seed must be an integer in 0..=18446744073709551615, got 1.8446744073709552e19"],
+    },
+    Case {
+        id: "negative-seed",
+        edits: &[("\"lights\"", "\"render\": {\"seed\": -1},\n  \"lights\"")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:5:",
+        words: &["render.seed: seed must be an integer in 0..=18446744073709551615, got -1"],
+    },
+    Case {
+        id: "fractional-seed",
+        edits: &[("\"lights\"", "\"render\": {\"seed\": 1.5},\n  \"lights\"")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:5:",
+        words: &["render.seed: seed must be an integer in 0..=18446744073709551615, got 1.5"],
     },
     Case {
         id: "negative-spp-flag",
@@ -681,4 +774,18 @@ fn a_byte_order_mark_is_skipped() {
     assert!(plain.starts_with("s.json:1:"), "{plain}");
     assert_eq!(marked, plain);
     assert!(parse(&format!("\u{200b}{}", scenes::TINY_SCENE)).is_err());
+}
+
+/// The control of `spectrum-cycle`: a chain of names that ends is no cycle,
+/// however long (one of more than 9 names was "refers to itself").
+#[test]
+fn a_long_chain_of_spectrum_names_resolves() {
+    let links: Vec<String> = (0..20).map(|i| format!("\"s{i}\": \"s{}\"", i + 1)).collect();
+    let spectra = format!("\"spectra\": {{{}, \"s20\": 0.25}},\n  \"materials\"", links.join(", "));
+    let text = scenes::TINY_SCENE
+        .replace("\"materials\"", &spectra)
+        .replace("\"reflectance\": 0.5", "\"reflectance\": \"s0\"");
+    if let Err(e) = prism::scene::parse_scene(&text, "s.json", Path::new(".")) {
+        panic!("{e}");
+    }
 }

@@ -158,6 +158,39 @@ fn bad_scenes_name_file_line_and_field() {
     let _ = std::fs::remove_dir_all(&d);
 }
 
+/// `prism reference` names the one flag at fault and its value (it said
+/// "need --spp >= 1, --passes >= 2, and --width/--height multiples of
+/// --block" whichever it was), and writes nothing.
+#[test]
+fn reference_flags_are_checked_one_by_one() {
+    let d = temp_dir("reference-flags");
+    let out = d.join("r.exr").display().to_string();
+    let flags = ["--spp", "--passes", "--width", "--height", "--block"];
+    // Each case breaks one condition; the other values are valid.
+    let cases = [
+        (["4", "2", "8", "8", "0"], "--block must be at least 1, got 0"),
+        (["0", "2", "8", "8", "8"], "--spp must be at least 1, got 0"),
+        (["4", "1", "8", "8", "8"], "--passes must be at least 2 (a variance needs two passes), got 1"),
+        (["4", "2", "10", "8", "8"], "--width 10 is not a multiple of --block 8"),
+        (["4", "2", "8", "12", "8"], "--height 12 is not a multiple of --block 8"),
+    ];
+    for (values, words) in cases {
+        let mut args = vec!["reference", "scenes/cornell-box.json", "--out", &out];
+        args.extend(flags.iter().zip(values).flat_map(|(f, v)| [*f, v]));
+        let o = prism(&args);
+        let e = stderr(&o);
+        assert!(!o.status.success(), "{values:?} succeeded");
+        assert!(e.lines().filter(|l| l.starts_with("error:")).count() == 1 && e.contains(words), "{values:?}: {e}");
+        assert!(!d.join("r.exr").exists() && !d.join("r.json").exists(), "{values:?} wrote an output");
+    }
+    // Control: the valid values render.
+    let mut args = vec!["reference", "scenes/cornell-box.json", "--out", &out];
+    args.extend(flags.iter().zip(["4", "2", "8", "8", "8"]).flat_map(|(f, v)| [*f, v]));
+    let o = prism(&args);
+    assert!(o.status.success() && d.join("r.exr").exists(), "{}", stderr(&o));
+    let _ = std::fs::remove_dir_all(&d);
+}
+
 #[test]
 fn failed_render_leaves_existing_output_untouched() {
     let d = temp_dir("keep");

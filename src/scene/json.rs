@@ -97,21 +97,94 @@ impl<'de, V: Deserialize<'de>> serde::de::Visitor<'de> for Names<V> {
     }
 }
 
+/// `N` values written as a JSON array of exactly `N`. serde's own arrays
+/// stop reading after the `N`th value, so a longer one failed as "trailing
+/// characters"; this one counts what was given (`expected 3 numbers
+/// [x, y, z], got 4`).
+#[derive(Clone, Copy)]
+struct Fixed<T, const N: usize>([T; N]);
+
+/// A point or a direction.
+type Xyz = Fixed<f32, 3>;
+
+/// What a `Fixed` array holds, as its errors name it.
+trait Element {
+    /// `n` of them, e.g. "3 numbers [x, y, z]".
+    fn count(n: usize) -> String;
+}
+
+impl Element for f32 {
+    fn count(n: usize) -> String {
+        // Every triple of numbers in a scene is a point or a direction.
+        match n {
+            3 => "3 numbers [x, y, z]".to_string(),
+            _ => format!("{n} numbers"),
+        }
+    }
+}
+
+impl Element for u32 {
+    // (A triangle's vertex indices are the only integers in arrays.)
+    fn count(n: usize) -> String {
+        format!("{n} vertex indices")
+    }
+}
+
+impl Element for Xyz {
+    fn count(n: usize) -> String {
+        format!("{n} points [x, y, z]")
+    }
+}
+
+impl<'de, T: Deserialize<'de> + Element, const N: usize> Deserialize<'de> for Fixed<T, N> {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        d.deserialize_seq(FixedVisitor(std::marker::PhantomData))
+    }
+}
+
+/// The visitor of `Fixed`.
+struct FixedVisitor<T, const N: usize>(std::marker::PhantomData<T>);
+
+impl<'de, T: Deserialize<'de> + Element, const N: usize> serde::de::Visitor<'de> for FixedVisitor<T, N> {
+    type Value = Fixed<T, N>;
+    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        f.write_str(&T::count(N))
+    }
+    fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<Self::Value, A::Error> {
+        let mut values = Vec::with_capacity(N);
+        while values.len() < N {
+            match seq.next_element()? {
+                Some(v) => values.push(v),
+                None => break,
+            }
+        }
+        // Values beyond the N are only counted, for the message.
+        let mut n = values.len();
+        while seq.next_element::<serde::de::IgnoredAny>()?.is_some() {
+            n += 1;
+        }
+        match values.try_into() {
+            Ok(array) if n == N => Ok(Fixed(array)),
+            _ => Err(serde::de::Error::custom(format!("expected {}, got {n}", T::count(N)))),
+        }
+    }
+}
+
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct CameraSpec {
-    position: [f32; 3],
-    look_at: [f32; 3],
+    position: Xyz,
+    look_at: Xyz,
     #[serde(default = "default_up")]
-    up: [f32; 3],
+    up: Xyz,
     /// Full vertical field of view in degrees.
     fov: f32,
     width: u32,
     height: u32,
 }
 
-fn default_up() -> [f32; 3] {
-    [0.0, 1.0, 0.0]
+fn default_up() -> Xyz {
+    Fixed([0.0, 1.0, 0.0])
 }
 
 #[derive(Deserialize, Default)]
@@ -120,7 +193,46 @@ struct RenderSpec {
     spp: Option<u32>,
     max_depth: Option<u32>,
     integrator: Option<String>,
-    seed: Option<u64>,
+    seed: Option<Seed>,
+}
+
+/// `render.seed`: any u64. serde's own messages named a type, not the
+/// range: 2^64, which serde_json reads as a float, was "invalid type:
+/// floating point `1.8446744073709552e+19`, expected u64".
+struct Seed(u64);
+
+impl<'de> Deserialize<'de> for Seed {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        d.deserialize_u64(SeedVisitor)
+    }
+}
+
+/// The visitor of `Seed`.
+struct SeedVisitor;
+
+impl SeedVisitor {
+    /// The error for `got`, with the range `expecting` gives.
+    fn refuse<E: serde::de::Error>(&self, got: impl fmt::Display) -> E {
+        E::custom(format!("seed must be {}, got {got}", self as &dyn serde::de::Expected))
+    }
+}
+
+impl serde::de::Visitor<'_> for SeedVisitor {
+    type Value = Seed;
+    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        write!(f, "an integer in 0..={}", u64::MAX)
+    }
+    fn visit_u64<E>(self, x: u64) -> Result<Seed, E> {
+        Ok(Seed(x))
+    }
+    fn visit_i64<E: serde::de::Error>(self, x: i64) -> Result<Seed, E> {
+        u64::try_from(x).map(Seed).map_err(|_| self.refuse(x))
+    }
+    /// A fraction, an exponent, or an integer beyond i64 and u64. (Debug
+    /// keeps a float a float: `1000.0` for `1e3`, not `1000`.)
+    fn visit_f64<E: serde::de::Error>(self, x: f64) -> Result<Seed, E> {
+        Err(self.refuse(format!("{x:?}")))
+    }
 }
 
 enum MaterialSpec {
@@ -241,14 +353,14 @@ struct GltfSpec {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct QuadSpec {
-    corners: [[f32; 3]; 4],
+    corners: Fixed<Xyz, 4>,
 }
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct CuboidSpec {
-    min: [f32; 3],
-    max: [f32; 3],
+    min: Xyz,
+    max: Xyz,
     /// Wind inward (normals point inside), for a room seen from inside.
     #[serde(default)]
     inward: bool,
@@ -257,7 +369,7 @@ struct CuboidSpec {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct SphereSpec {
-    center: [f32; 3],
+    center: Xyz,
     radius: f32,
     #[serde(default = "default_subdivisions")]
     subdivisions: u32,
@@ -275,10 +387,10 @@ fn default_subdivisions() -> u32 {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct InlineMeshSpec {
-    positions: Vec<[f32; 3]>,
-    indices: Vec<[u32; 3]>,
+    positions: Vec<Xyz>,
+    indices: Vec<Fixed<u32, 3>>,
     #[serde(default)]
-    normals: Vec<[f32; 3]>,
+    normals: Vec<Xyz>,
 }
 
 #[derive(Deserialize)]
@@ -296,7 +408,7 @@ struct TransformSpec {
     #[serde(default)]
     rotate: Option<RotateSpec>,
     #[serde(default)]
-    translate: Option<[f32; 3]>,
+    translate: Option<Xyz>,
 }
 
 #[derive(Deserialize)]
@@ -309,7 +421,7 @@ enum ScaleSpec {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RotateSpec {
-    axis: [f32; 3],
+    axis: Xyz,
     degrees: f32,
 }
 
@@ -328,7 +440,7 @@ tagged_enum!(LightSpec, "a light", {
 struct PointSpec {
     #[serde(default)]
     name: Option<String>,
-    position: [f32; 3],
+    position: Xyz,
     intensity: SpectrumSpec,
 }
 
@@ -404,9 +516,11 @@ fn spectrum_from_value(v: &serde_json::Value) -> Result<SpectrumSpec, String> {
             .and_then(|a| a.iter().map(|x| x.as_f64().map(|x| x as f32)).collect::<Option<Vec<f32>>>())
             .ok_or_else(|| format!("\"{what}\" must be an array of numbers"))
     };
-    let arr3 = |v: &Value, what: &str| -> Result<[f32; 3], String> {
+    // `parts` names the three, as `Fixed` does a point's.
+    let arr3 = |v: &Value, what: &str, parts: &str| -> Result<[f32; 3], String> {
         let a = arr(v, what)?;
-        a.try_into().map_err(|_| format!("\"{what}\" must have 3 numbers"))
+        let n = a.len();
+        a.try_into().map_err(|_| format!("\"{what}\": expected 3 numbers {parts}, got {n}"))
     };
     match v {
         Value::Number(n) => Ok(SpectrumSpec::Constant(n.as_f64().unwrap_or(f64::NAN) as f32)),
@@ -430,7 +544,7 @@ fn spectrum_from_value(v: &serde_json::Value) -> Result<SpectrumSpec, String> {
                 return Err(format!("unknown field \"{k}\" (expected {})", allowed.join(", ")));
             }
             if let Some(v) = o.get("rgb") {
-                return Ok(SpectrumSpec::Rgb(arr3(v, "rgb")?, scale));
+                return Ok(SpectrumSpec::Rgb(arr3(v, "rgb", "[r, g, b]")?, scale));
             }
             if let Some(v) = o.get("blackbody") {
                 return Ok(SpectrumSpec::Blackbody(num(v, "blackbody")?, scale));
@@ -450,7 +564,7 @@ fn spectrum_from_value(v: &serde_json::Value) -> Result<SpectrumSpec, String> {
             };
             if let Some(v) = o.get("sellmeier") {
                 let (b, c) = coeffs(v, "b", "c")?;
-                return Ok(SpectrumSpec::Sellmeier(arr3(&b, "b")?, arr3(&c, "c")?));
+                return Ok(SpectrumSpec::Sellmeier(arr3(&b, "b", "[b1, b2, b3]")?, arr3(&c, "c", "[c1, c2, c3]")?));
             }
             let (a, b) = coeffs(&o["cauchy"], "a", "b")?;
             Ok(SpectrumSpec::Cauchy(num(&a, "a")?, num(&b, "b")?))
@@ -482,10 +596,64 @@ struct Ctx<'a> {
     file: &'a str,
     text: &'a str,
     dir: &'a Path,
-    spectra: &'a BTreeMap<String, SpectrumSpec>,
+    /// The scene's `spectra`, each entry that names another replaced by
+    /// what its chain of names ends at (`follow_names`).
+    spectra: BTreeMap<&'a str, &'a SpectrumSpec>,
 }
 
-impl Ctx<'_> {
+/// The scene's `spectra` with every chain of names followed to its end: an
+/// entry that is not a name, or a name the scene does not define (a
+/// built-in, or unknown). Err(a cycle, its first name repeated at the end)
+/// if the names form one. Each entry is walked once, however long the chain.
+fn follow_names(spectra: &BTreeMap<String, SpectrumSpec>) -> Result<BTreeMap<&str, &SpectrumSpec>, Vec<&str>> {
+    // None: on the chain being followed (every earlier chain has its end).
+    let mut ends: BTreeMap<&str, Option<&SpectrumSpec>> = BTreeMap::new();
+    for (start, first) in spectra {
+        if ends.contains_key(start.as_str()) {
+            continue;
+        }
+        let (mut chain, mut spec) = (vec![start.as_str()], first);
+        ends.insert(start, None);
+        while let SpectrumSpec::Name(next) = spec {
+            match (ends.get(next.as_str()).copied(), spectra.get(next)) {
+                (Some(Some(end)), _) => spec = end,
+                (Some(None), _) => {
+                    let from = chain.iter().position(|n| n == next).unwrap_or_default();
+                    return Err([&chain[from..], &[next.as_str()]].concat());
+                }
+                (None, Some(s)) => {
+                    chain.push(next);
+                    ends.insert(next, None);
+                    spec = s;
+                }
+                (None, None) => break,
+            }
+        }
+        chain.into_iter().for_each(|n| _ = ends.insert(n, Some(spec)));
+    }
+    Ok(ends.into_iter().filter_map(|(n, end)| Some((n, end?))).collect())
+}
+
+impl<'a> Ctx<'a> {
+    /// Refuses a cycle of names in `spectra` where its first name is
+    /// defined (where it is used, one name of the cycle looked like the fault).
+    fn new(
+        file: &'a str,
+        text: &'a str,
+        dir: &'a Path,
+        spectra: &'a BTreeMap<String, SpectrumSpec>,
+    ) -> Result<Self, LoadError> {
+        let mut ctx = Ctx { file, text, dir, spectra: BTreeMap::new() };
+        ctx.spectra = follow_names(spectra).map_err(|cycle| {
+            let message = match cycle.as_slice() {
+                [one, _] => format!("spectrum \"{one}\" names itself"),
+                _ => format!("spectra \"{}\" form a cycle", cycle.join("\" -> \"")),
+            };
+            ctx.err(&[Seg::Key("spectra".into()), Seg::Key(cycle[0].to_string())], message)
+        })?;
+        Ok(ctx)
+    }
+
     fn err(&self, path: &[Seg], message: impl Into<String>) -> LoadError {
         LoadError {
             file: self.file.to_string(),
@@ -503,19 +671,15 @@ impl Ctx<'_> {
         }
     }
 
-    fn vec3(&self, path: &[Seg], v: [f32; 3]) -> Result<Vec3A, LoadError> {
+    fn vec3(&self, path: &[Seg], Fixed(v): Xyz) -> Result<Vec3A, LoadError> {
         self.finite(path, &v)?;
         Ok(Vec3A::from_array(v))
     }
 
     fn spectrum(&self, path: &[Seg], spec: &SpectrumSpec, usage: Use) -> Result<Spectrum, LoadError> {
-        self.spectrum_depth(path, spec, usage, 0)
-    }
-
-    fn spectrum_depth(&self, path: &[Seg], spec: &SpectrumSpec, usage: Use, depth: u32) -> Result<Spectrum, LoadError> {
         let s = match spec {
             SpectrumSpec::Constant(c) => Spectrum::Constant(self.non_negative(path, *c, "a spectrum value")?),
-            SpectrumSpec::Name(name) => return self.named_spectrum(path, name, usage, depth),
+            SpectrumSpec::Name(name) => return self.named_spectrum(path, name, usage),
             SpectrumSpec::Rgb(rgb, scale) => {
                 self.finite(path, rgb)?;
                 let scale = self.scale(path, *scale)?;
@@ -560,15 +724,13 @@ impl Ctx<'_> {
         self.non_negative(path, scale, "scale")
     }
 
-    /// A name: one of the scene's `spectra` (which may name another, up to a
-    /// depth of 8), else a built-in of the use (glasses for an IOR,
-    /// illuminants for emission; reflectances have none).
-    fn named_spectrum(&self, path: &[Seg], name: &str, usage: Use, depth: u32) -> Result<Spectrum, LoadError> {
+    /// A name: one of the scene's `spectra` (followed to the end of its
+    /// chain of names, so this recurses once at most), else a built-in of
+    /// the use (glasses for an IOR, illuminants for emission; reflectances
+    /// have none).
+    fn named_spectrum(&self, path: &[Seg], name: &str, usage: Use) -> Result<Spectrum, LoadError> {
         if let Some(s) = self.spectra.get(name) {
-            if depth > 8 {
-                return Err(self.err(path, format!("spectrum \"{name}\" refers to itself")));
-            }
-            return self.spectrum_depth(path, s, usage, depth + 1);
+            return self.spectrum(path, s, usage);
         }
         let (builtin, builtins) = match usage {
             Use::Ior => (spectrum::glass_ior(name), spectrum::GLASS_NAMES),
@@ -576,7 +738,7 @@ impl Ctx<'_> {
             Use::Reflectance | Use::Other => (None, &[][..]),
         };
         let s = builtin.ok_or_else(|| {
-            let mut known: Vec<String> = self.spectra.keys().cloned().collect();
+            let mut known: Vec<String> = self.spectra.keys().map(|n| n.to_string()).collect();
             known.extend(builtins.iter().map(|s| s.to_string()));
             if known.is_empty() {
                 // Not "(known: )": say where names come from.
@@ -725,7 +887,7 @@ impl Ctx<'_> {
         let mesh = match spec {
             ShapeSpec::Quad(q) => {
                 let mut c = [Vec3A::ZERO; 4];
-                for (i, v) in q.corners.iter().enumerate() {
+                for (i, v) in q.corners.0.iter().enumerate() {
                     c[i] = self.vec3(&at("corners"), *v)?;
                 }
                 Mesh::quad(c)
@@ -769,12 +931,13 @@ impl Ctx<'_> {
         if !normals.is_empty() && normals.len() != positions.len() {
             return Err(self.err(&with(path, "normals"), "needs one normal per position"));
         }
-        if let Some(i) = m.indices.iter().flatten().find(|&&i| i as usize >= positions.len()) {
+        let indices: Vec<[u32; 3]> = m.indices.iter().map(|t| t.0).collect();
+        if let Some(i) = indices.iter().flatten().find(|&&i| i as usize >= positions.len()) {
             return Err(
                 self.err(&with(path, "indices"), format!("index {i} is out of range ({} positions)", positions.len()))
             );
         }
-        Ok(Mesh { positions, normals, indices: m.indices.clone() })
+        Ok(Mesh { positions, normals, indices })
     }
 
     fn obj(&self, path: &[Seg], file: &str) -> Result<Mesh, LoadError> {
@@ -847,7 +1010,7 @@ impl Ctx<'_> {
                 Quat::from_axis_angle(axis.as_vec3().normalize(), r.degrees.to_radians())
             }
         };
-        let translation = Vec3::from(self.vec3(&with(path, "translate"), t.translate.unwrap_or([0.0; 3]))?);
+        let translation = Vec3::from(self.vec3(&with(path, "translate"), t.translate.unwrap_or(Fixed([0.0; 3])))?);
         Ok(Affine3A::from_scale_rotation_translation(scale, rotation, translation))
     }
 }
@@ -909,7 +1072,7 @@ pub fn parse_scene(text: &str, file: &str, dir: &Path) -> Result<SceneBuilder, L
     })?;
     // Nothing but white space may follow the scene's object.
     de.end().map_err(|e| syntax(String::new(), e))?;
-    let ctx = Ctx { file, text, dir, spectra: &parsed.spectra };
+    let ctx = Ctx::new(file, text, dir, &parsed.spectra)?;
     build(&ctx, &parsed)
 }
 
@@ -1058,6 +1221,11 @@ fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
             return Err(ctx.err(&[Seg::Key("render".into()), Seg::Key("integrator".into())], e));
         }
     }
-    b.defaults = RenderDefaults { spp: r.spp, max_depth: r.max_depth, integrator: r.integrator.clone(), seed: r.seed };
+    b.defaults = RenderDefaults {
+        spp: r.spp,
+        max_depth: r.max_depth,
+        integrator: r.integrator.clone(),
+        seed: r.seed.as_ref().map(|s| s.0),
+    };
     Ok(b)
 }
