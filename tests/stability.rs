@@ -648,6 +648,26 @@ fn bad_numbers_degenerate_geometry() {
     }
 }
 
+/// An emitter in another surface's plane is named (`Scene::
+/// emitters_on_surfaces`): the stage's lamp (y = 2.5, x and z in
+/// [-0.5, 0.5]) under a ceiling in its plane; controls: the ceiling 0.01
+/// above it, and a panel in its plane that only shares its edge x = 0.5.
+#[test]
+fn an_emitter_in_a_surface_is_named() {
+    let warned = |corners: &str| {
+        let objects = format!(
+            r#",
+    {{"name": "ceiling", "shape": {{"type": "quad", "corners": {corners}}}, "material": "white"}}"#
+        );
+        let text = stage("", &objects, "", None);
+        let s = parse_scene(&text, "coplanar", Path::new(".")).unwrap().build();
+        s.emitters_on_surfaces().is_some_and(|w| w.contains("\"lamp (triangle") && w.contains("\"white\""))
+    };
+    assert!(warned("[[-2, 2.5, -2], [-2, 2.5, 2], [2, 2.5, 2], [2, 2.5, -2]]"), "a lamp in the ceiling's plane");
+    assert!(!warned("[[-2, 2.51, -2], [-2, 2.51, 2], [2, 2.51, 2], [2, 2.51, -2]]"), "a ceiling 0.01 above");
+    assert!(!warned("[[0.5, 2.5, -0.5], [0.5, 2.5, 0.5], [2, 2.5, 0.5], [2, 2.5, -0.5]]"), "a panel beside");
+}
+
 #[test]
 fn bad_numbers_grazing_and_materials() {
     // Grazing: the camera exactly in the floor's plane, a quad seen edge-on,

@@ -528,7 +528,11 @@ pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
         .map(|s| integrators::create(&s.name, &IntegratorOptions { max_depth, mis: s.mis }).map_err(anyhow::Error::msg))
         .collect::<Result<Vec<_>>>()?;
     let scene_name = cfg.scene.display().to_string();
-    let mut notes = Vec::new();
+    // What no estimator can get right: a note on every chart of the run.
+    let mut notes: Vec<String> = scene.emitters_on_surfaces().into_iter().collect();
+    for n in &notes {
+        eprintln!("warning: {n}");
+    }
 
     let (reference, info) = obtain_reference(cfg, &scene, &scene_name, seed, max_depth, &mut notes)?;
     ensure!(

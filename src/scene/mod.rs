@@ -2,6 +2,7 @@
 //! and the queries the integrators make (closest hit as a surface
 //! interaction, visibility, light selection).
 
+mod coplanar;
 mod gltf;
 mod json;
 pub mod locate;
