@@ -174,19 +174,20 @@ fn reference_flags_are_checked_one_by_one() {
         (["4", "2", "10", "8", "8"], "--width 10 is not a multiple of --block 8"),
         (["4", "2", "8", "12", "8"], "--height 12 is not a multiple of --block 8"),
     ];
-    for (values, words) in cases {
+    let reference = |values: [&str; 5]| {
         let mut args = vec!["reference", "scenes/cornell-box.json", "--out", &out];
         args.extend(flags.iter().zip(values).flat_map(|(f, v)| [*f, v]));
-        let o = prism(&args);
+        prism(&args)
+    };
+    for (values, words) in cases {
+        let o = reference(values);
         let e = stderr(&o);
         assert!(!o.status.success(), "{values:?} succeeded");
         assert!(e.lines().filter(|l| l.starts_with("error:")).count() == 1 && e.contains(words), "{values:?}: {e}");
         assert!(!d.join("r.exr").exists() && !d.join("r.json").exists(), "{values:?} wrote an output");
     }
     // Control: the valid values render.
-    let mut args = vec!["reference", "scenes/cornell-box.json", "--out", &out];
-    args.extend(flags.iter().zip(["4", "2", "8", "8", "8"]).flat_map(|(f, v)| [*f, v]));
-    let o = prism(&args);
+    let o = reference(["4", "2", "8", "8", "8"]);
     assert!(o.status.success() && d.join("r.exr").exists(), "{}", stderr(&o));
     let _ = std::fs::remove_dir_all(&d);
 }
