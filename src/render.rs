@@ -8,14 +8,15 @@
 //! (film.rs), so no result depends on which thread ran what, nor on how the
 //! sample indices were split into chunks, checkpoints or parts: the same
 //! scene, seed and samples give bit-identical images at any thread count.
-//! Tiles are still merged in tile order (`TileQueue`), for the f64
-//! per-strategy images below.
+//! The work is cut into tasks, a tile and a run of sample indices each
+//! (`tasks`), merged in task order (`TaskQueue`), for the f64 per-strategy
+//! images below.
 //!
 //! Per-strategy images (`render_with_strategies`, BDPT's `--strategies`):
 //! the integrator appends a small `StrategyRecord` per strategy to the
 //! workspace; the tile sums the t >= 2 ones into per-(s, t) buffers for its
 //! own pixels and keeps the t = 1 ones as splats, both in sample order, and
-//! the batch merge adds them in tile order like the film: still
+//! the merge adds them in task order like the film: still
 //! deterministic. Without it the workspace holds no record list and the
 //! integrator's check costs one branch.
 
@@ -35,6 +36,9 @@ use std::sync::{Condvar, Mutex};
 use std::time::{Duration, Instant};
 
 const TILE: u32 = 16;
+/// A render is cut into at least this many tasks, small images included
+/// (`tasks`).
+const MIN_TASKS: usize = 64;
 
 /// A contribution to the pixel that contains `raster` (box filter), from any
 /// sample of the image (light tracing, BDPT's t = 1 strategy).
@@ -160,6 +164,8 @@ impl RenderStats {
 struct TileOutput {
     origin: UVec2,
     size: UVec2,
+    /// Samples per pixel in it.
+    spp: u64,
     sums: Vec<[i128; 3]>,
     /// (pixel index, colour): kept as f32 until the merge, the most compact
     /// form (a batch of tiles may hold many splats).
@@ -177,9 +183,8 @@ pub fn render(
     film: &mut Film,
     samples: Range<u32>,
 ) -> RenderStats {
-    let tiles = tile_grid(film.width, film.height);
-    let bar = progress_bar(opts.progress, tiles.len() as u64);
-    let stats = render_impl(scene, integrator, &thread_pool(opts), &bar, &tiles, opts.seed, film, samples, None);
+    let bar = progress_bar(opts.progress, film, &samples);
+    let stats = render_impl(scene, integrator, &thread_pool(opts), &bar, opts.seed, film, samples, None);
     bar.finish_and_clear();
     stats
 }
@@ -197,15 +202,14 @@ pub fn render_chunked(
     mut after_chunk: impl FnMut(&Film) -> anyhow::Result<()>,
 ) -> anyhow::Result<RenderStats> {
     assert!(chunk > 0, "chunks of zero samples");
-    let (pool, tiles) = (thread_pool(opts), tile_grid(film.width, film.height));
+    let pool = thread_pool(opts);
     // The chunks are made as they come: a list of them all would take 8
     // bytes per chunk, 32 GiB for 2^32 one-sample chunks.
-    let n_chunks = (samples.len() as u64).div_ceil(chunk as u64);
-    let bar = progress_bar(opts.progress, tiles.len() as u64 * n_chunks);
+    let bar = progress_bar(opts.progress, film, &samples);
     let mut total = RenderStats::default();
     for first in samples.clone().step_by(chunk as usize) {
         let c = first..first.saturating_add(chunk).min(samples.end);
-        total.add(&render_impl(scene, integrator, &pool, &bar, &tiles, opts.seed, film, c, None));
+        total.add(&render_impl(scene, integrator, &pool, &bar, opts.seed, film, c, None));
         after_chunk(film)?;
     }
     bar.finish_and_clear();
@@ -228,10 +232,9 @@ pub fn render_with_strategies(
         (film.width, film.height),
         "strategy images and film differ in size"
     );
-    let tiles = tile_grid(film.width, film.height);
-    let bar = progress_bar(opts.progress, tiles.len() as u64);
+    let bar = progress_bar(opts.progress, film, &samples);
     let pool = thread_pool(opts);
-    let stats = render_impl(scene, integrator, &pool, &bar, &tiles, opts.seed, film, samples, Some(strategies));
+    let stats = render_impl(scene, integrator, &pool, &bar, opts.seed, film, samples, Some(strategies));
     bar.finish_and_clear();
     stats
 }
@@ -262,13 +265,45 @@ fn tile_grid(w: u32, h: u32) -> Vec<(UVec2, UVec2)> {
         .collect()
 }
 
+/// A unit of the render's work: a tile's pixels, for a run of sample
+/// indices.
+#[derive(Debug)]
+struct Task {
+    origin: UVec2,
+    size: UVec2,
+    samples: Range<u32>,
+}
+
+/// The render's tasks, in merge order: the image's tiles in row-major order
+/// with all of `samples`, or, when the image has fewer than `MIN_TASKS`
+/// tiles, each tile with consecutive runs of them (whole packets of `LANES`
+/// samples), so that a small image keeps every thread busy too (a 16 x 16
+/// image is one tile, which one thread rendered alone before). The cut depends on the image and the samples only, never on the thread
+/// count, and the film's sums are exact, so it does not change the image.
+fn tasks(width: u32, height: u32, samples: Range<u32>) -> Vec<Task> {
+    let tiles = tile_grid(width, height);
+    let n = samples.len();
+    let runs = MIN_TASKS.div_ceil(tiles.len().max(1)).min(n.div_ceil(LANES)).max(1);
+    let run = n.div_ceil(runs).next_multiple_of(LANES).max(LANES);
+    let end = samples.end;
+    tiles
+        .into_iter()
+        .flat_map(|(origin, size)| {
+            samples.clone().step_by(run).map(move |first| Task {
+                origin,
+                size,
+                samples: first..first.saturating_add(run as u32).min(end),
+            })
+        })
+        .collect()
+}
+
 #[allow(clippy::too_many_arguments)]
 fn render_impl(
     scene: &Scene,
     integrator: &dyn Integrator,
     pool: &ThreadPool,
     bar: &ProgressBar,
-    tiles: &[(UVec2, UVec2)],
     seed: u64,
     film: &mut Film,
     samples: Range<u32>,
@@ -277,14 +312,14 @@ fn render_impl(
     let record = strategies.is_some();
     let start = Instant::now();
     let (w, h, spp) = (film.width, film.height, samples.len() as u64);
-    let merge = Merge { film, strategies, spp, rays: 0, splats: Vec::new() };
-    let queue = TileQueue::new(tiles.len(), merge);
+    let tasks = tasks(w, h, samples);
+    let merge = Merge { film, strategies, rays: 0, splats: Vec::new() };
+    let queue = TaskQueue::new(tasks.len(), merge);
     pool.broadcast(|_| {
         let mut ws = Workspace { strategies: record.then(Vec::new), ..Workspace::default() };
         queue.work(|i| {
-            let (origin, size) = tiles[i];
-            let out = render_tile(scene, integrator, seed, &mut ws, w, origin, size, samples.clone());
-            bar.inc(1);
+            let out = render_tile(scene, integrator, seed, &mut ws, w, &tasks[i]);
+            bar.inc(out.sums.len() as u64 * out.spp);
             out
         });
     });
@@ -302,8 +337,6 @@ fn render_impl(
 struct Merge<'a> {
     film: &'a mut Film,
     strategies: Option<&'a mut StrategyImages>,
-    /// Camera samples per pixel in this render call.
-    spp: u64,
     rays: u64,
     /// Splats of merged tiles not yet in the film, in tile order.
     splats: Vec<(u32, Vec3)>,
@@ -319,7 +352,7 @@ impl Merge<'_> {
             merge_tile_strategies(images, &out, tile);
         }
         self.splats.append(&mut out.splats);
-        merge_tile(self.film, out, self.spp);
+        merge_tile(self.film, out);
         if self.splats.len() >= self.film.sums.len().min(SPLAT_BATCH) {
             self.add_splats();
         }
@@ -344,42 +377,42 @@ impl Merge<'_> {
     }
 }
 
-/// Tiles handed out in order and merged in order, with no barrier: a worker
-/// takes the next tile as soon as it is free, and a finished tile waits only
-/// for the tiles before it. The merge order (tile order) is what makes the
+/// Tasks handed out in order and merged in order, with no barrier: a worker
+/// takes the next task as soon as it is free, and a finished task waits only
+/// for the tasks before it. The merge order (task order) is what makes the
 /// per-strategy f64 sums, and the film's drop decisions, independent of the
-/// thread count. At most `WINDOW` tiles are taken but not yet merged, which
+/// thread count. At most `WINDOW` tasks are taken but not yet merged, which
 /// bounds the memory held by their splats. (Batches of tiles with a barrier
 /// after each, as before, left a core idle at every barrier: 3 % of a Cornell
 /// box render on 2 threads.)
-struct TileQueue<'a> {
+struct TaskQueue<'a> {
     state: Mutex<QueueState<'a>>,
     merged: Condvar,
     len: usize,
 }
 
 struct QueueState<'a> {
-    /// The next tile to hand out.
+    /// The next task to hand out.
     next: usize,
-    /// Tiles before this one are in the merge.
+    /// Tasks before this one are in the merge.
     merged: usize,
     finished: BTreeMap<usize, TileOutput>,
     merge: Merge<'a>,
-    /// A worker panicked: the others stop taking tiles (and stop waiting
+    /// A worker panicked: the others stop taking tasks (and stop waiting
     /// for one that will never be merged).
     abandoned: bool,
 }
 
-/// Tiles taken but not yet merged, at most.
+/// Tasks taken but not yet merged, at most.
 const WINDOW: usize = 64;
 
-impl<'a> TileQueue<'a> {
+impl<'a> TaskQueue<'a> {
     fn new(len: usize, merge: Merge<'a>) -> Self {
         let state = QueueState { next: 0, merged: 0, finished: BTreeMap::new(), merge, abandoned: false };
         Self { state: Mutex::new(state), merged: Condvar::new(), len }
     }
 
-    /// A worker's loop: renders tiles until none is left.
+    /// A worker's loop: renders tasks until none is left.
     fn work(&self, mut render: impl FnMut(usize) -> TileOutput) {
         let _abandon = AbandonOnPanic(self);
         while let Some(i) = self.take() {
@@ -388,7 +421,7 @@ impl<'a> TileQueue<'a> {
         }
     }
 
-    /// The next tile to render, once it is within `WINDOW` of the merge;
+    /// The next task to render, once it is within `WINDOW` of the merge;
     /// `None` when all are taken.
     fn take(&self) -> Option<usize> {
         let mut st = self.lock();
@@ -401,7 +434,7 @@ impl<'a> TileQueue<'a> {
         })
     }
 
-    /// Tile `i`'s output; merges every finished tile that no earlier one
+    /// Task `i`'s output; merges every finished task that no earlier one
     /// still holds back.
     fn finish(&self, i: usize, out: TileOutput) {
         let mut st = self.lock();
@@ -422,14 +455,14 @@ impl<'a> TileQueue<'a> {
 
     fn into_merge(self) -> Merge<'a> {
         let st = self.state.into_inner().unwrap_or_else(|e| e.into_inner());
-        assert!(!st.abandoned && st.merged == self.len, "{} of {} tiles merged", st.merged, self.len);
+        assert!(!st.abandoned && st.merged == self.len, "{} of {} tasks merged", st.merged, self.len);
         st.merge
     }
 }
 
-/// Tells the other workers to stop when a tile's render panics, so none
-/// waits for the lost tile's merge (the pool then re-raises the panic).
-struct AbandonOnPanic<'q, 'a>(&'q TileQueue<'a>);
+/// Tells the other workers to stop when a task's render panics, so none
+/// waits for the lost task's merge (the pool then re-raises the panic).
+struct AbandonOnPanic<'q, 'a>(&'q TaskQueue<'a>);
 
 impl Drop for AbandonOnPanic<'_, '_> {
     fn drop(&mut self) {
@@ -440,32 +473,32 @@ impl Drop for AbandonOnPanic<'_, '_> {
     }
 }
 
-fn progress_bar(visible: bool, len: u64) -> ProgressBar {
+/// A bar over the pixel samples `samples` of every pixel of `film`.
+fn progress_bar(visible: bool, film: &Film, samples: &Range<u32>) -> ProgressBar {
     if !visible {
         return ProgressBar::hidden();
     }
-    let bar = ProgressBar::new(len);
+    let bar = ProgressBar::new(film.sums.len() as u64 * samples.len() as u64);
     bar.set_style(
-        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} tiles (eta {eta})")
+        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {percent}% (eta {eta})")
             .expect("progress template"),
     );
     bar
 }
 
-#[allow(clippy::too_many_arguments)]
 fn render_tile(
     scene: &Scene,
     integrator: &dyn Integrator,
     seed: u64,
     ws: &mut Workspace,
     width: u32,
-    origin: UVec2,
-    size: UVec2,
-    samples: Range<u32>,
+    task: &Task,
 ) -> TileOutput {
+    let Task { origin, size, ref samples } = *task;
     let mut out = TileOutput {
         origin,
         size,
+        spp: samples.len() as u64,
         sums: vec![[0; 3]; (size.x * size.y) as usize],
         splats: Vec::new(),
         dropped: DroppedSamples::default(),
@@ -621,18 +654,48 @@ fn add_to_buffers(buffers: &mut [Vec<[f64; 3]>; 2], i: usize, v: &[[f64; 3]; 2])
     }
 }
 
-/// Adds a tile's sums (`spp` camera samples per pixel) to the film (its
-/// splats go through `Merge::add_splats`). What would carry a pixel's sum
-/// out of the film's range is dropped and counted as infinite: a splat, or
-/// a tile pixel's `spp` samples.
-fn merge_tile(film: &mut Film, out: TileOutput, spp: u64) {
+/// Adds a task's sums to the film (its splats go through
+/// `Merge::add_splats`). What would carry a pixel's sum out of the film's
+/// range is dropped and counted as infinite: a splat, or the task's samples
+/// of a pixel.
+fn merge_tile(film: &mut Film, out: TileOutput) {
     for y in 0..out.size.y {
         for x in 0..out.size.x {
             let i = ((out.origin.y + y) * film.width + out.origin.x + x) as usize;
             if !add_fixed(&mut film.sums[i], out.sums[(y * out.size.x + x) as usize]) {
-                film.dropped.infinite += spp;
+                film.dropped.infinite += out.spp;
             }
         }
     }
     film.dropped.merge(&out.dropped);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every (pixel, sample index) of a render is in exactly one task, a
+    /// task's run starts on a packet boundary, and an image of fewer tiles
+    /// than `MIN_TASKS` is cut into runs while a larger one is not.
+    #[test]
+    fn tasks_cover_every_pixel_sample_once() {
+        for (w, h, samples) in [(16, 16, 0..4096), (16, 16, 3..40), (40, 24, 0..64), (8, 8, 0..1), (144, 128, 0..9)] {
+            let n = samples.len();
+            let mut count = vec![0u32; (w * h) as usize * n];
+            for t in tasks(w, h, samples.clone()) {
+                assert_eq!((t.samples.start - samples.start) % LANES as u32, 0, "{t:?}");
+                for (y, x) in (0..t.size.y).flat_map(|y| (0..t.size.x).map(move |x| (y, x))) {
+                    let pixel = ((t.origin.y + y) * w + t.origin.x + x) as usize;
+                    for s in t.samples.clone() {
+                        count[pixel * n + (s - samples.start) as usize] += 1;
+                    }
+                }
+            }
+            assert!(count.iter().all(|&c| c == 1), "{w}x{h}, samples {samples:?}: not a partition");
+        }
+        assert_eq!(tasks(16, 16, 0..4096).len(), MIN_TASKS);
+        assert_eq!(tasks(40, 24, 0..64).len(), 6 * 8);
+        assert_eq!(tasks(144, 128, 0..4096).len(), 9 * 8);
+        assert!(tasks(16, 16, 0..0).is_empty());
+    }
 }

@@ -91,6 +91,32 @@ fn sample_ranges_add_up_to_one_render() {
     }
 }
 
+/// An image of one tile is cut into runs of sample indices so that every
+/// thread has work (render.rs `tasks`); the cut must not change the image.
+/// A 16 x 16 image, 64 spp in one call at 1 and 2 threads, against 64
+/// one-sample calls (a call of one sample is not cut).
+#[test]
+fn a_one_tile_image_cut_into_runs_is_the_same_image() {
+    let (w, h) = (16, 16);
+    let s = scene("cornell-box.json", w, h);
+    for name in ["path", "light", "bdpt"] {
+        let it = integrator(name);
+        let film_of = |threads: usize, ranges: &mut dyn Iterator<Item = std::ops::Range<u32>>| {
+            let mut film = Film::new(w, h);
+            for r in ranges {
+                render(&s, it.as_ref(), &RenderOptions { seed: 11, threads, progress: false }, &mut film, r);
+            }
+            film
+        };
+        let reference = film_of(1, &mut (0..64).map(|i| i..i + 1));
+        for threads in [1, 2] {
+            let cut = film_of(threads, &mut std::iter::once(0..64));
+            assert!(cut.sums == reference.sums, "{name}, {threads} threads: the cut changed the image");
+            assert_eq!(cut.spp, reference.spp);
+        }
+    }
+}
+
 /// An estimator that panics on one pixel: the render must re-raise the
 /// panic, not wait forever for the lost tile's merge.
 struct PanicsAt(UVec2);
