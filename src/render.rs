@@ -1,4 +1,4 @@
-//! The parallel driver: tiles over rayon, a progress bar, deterministic
+//! The parallel driver: tasks over rayon, a progress bar, deterministic
 //! seeding and a deterministic merge.
 //!
 //! Determinism: every sample (pixel, index) draws from its own stream seeded
@@ -8,13 +8,17 @@
 //! (film.rs), so no result depends on which thread ran what, nor on how the
 //! sample indices were split into chunks, checkpoints or parts: the same
 //! scene, seed and samples give bit-identical images at any thread count.
+//! (One caveat: a pixel sum that would leave the fixed-point range is
+//! dropped and counted, and which addend overflows depends on the grouping
+//! of the adds; the grouping depends on the image and sample range, not on
+//! the threads.)
 //! The work is cut into tasks, a tile and a run of sample indices each
 //! (`tasks`), merged in task order (`TaskQueue`), for the f64 per-strategy
 //! images below.
 //!
 //! Per-strategy images (`render_with_strategies`, BDPT's `--strategies`):
 //! the integrator appends a small `StrategyRecord` per strategy to the
-//! workspace; the tile sums the t >= 2 ones into per-(s, t) buffers for its
+//! workspace; the task sums the t >= 2 ones into per-(s, t) buffers for its
 //! own pixels and keeps the t = 1 ones as splats, both in sample order, and
 //! the merge adds them in task order like the film: still
 //! deterministic. Without it the workspace holds no record list and the
@@ -125,10 +129,10 @@ impl StrategyImages {
     }
 }
 
-/// A tile's strategy records: per-(s, t) sums over its own pixels (t >= 2)
+/// A task's strategy records: per-(s, t) sums over its own pixels (t >= 2)
 /// and splats (t = 1: pixel index, s, t, [weighted, unweighted]).
 #[derive(Default)]
-struct TileStrategies {
+struct TaskStrategies {
     pixels: BTreeMap<(u32, u32), Vec<[[f64; 3]; 2]>>,
     splats: Vec<(u32, u32, u32, [[f64; 3]; 2])>,
     dropped: DroppedSamples,
@@ -161,18 +165,18 @@ impl RenderStats {
     }
 }
 
-struct TileOutput {
+struct TaskOutput {
     origin: UVec2,
     size: UVec2,
     /// Samples per pixel in it.
     spp: u64,
     sums: Vec<[i128; 3]>,
     /// (pixel index, colour): kept as f32 until the merge, the most compact
-    /// form (a batch of tiles may hold many splats).
+    /// form (the tasks awaiting their merge may hold many splats).
     splats: Vec<(u32, Vec3)>,
     dropped: DroppedSamples,
     rays: u64,
-    strategies: Option<TileStrategies>,
+    strategies: Option<TaskStrategies>,
 }
 
 /// Adds samples `samples` (indices) of every pixel to the film.
@@ -278,13 +282,16 @@ struct Task {
 /// with all of `samples`, or, when the image has fewer than `MIN_TASKS`
 /// tiles, each tile with consecutive runs of them (whole packets of `LANES`
 /// samples), so that a small image keeps every thread busy too (a 16 x 16
-/// image is one tile, which one thread rendered alone before). The cut depends on the image and the samples only, never on the thread
-/// count, and the film's sums are exact, so it does not change the image.
+/// image is one tile, which one thread rendered alone before). The cut
+/// depends on the image and the samples only, never on the thread count,
+/// and the film's sums are exact, so it does not change the image.
 fn tasks(width: u32, height: u32, samples: Range<u32>) -> Vec<Task> {
     let tiles = tile_grid(width, height);
     let n = samples.len();
     let runs = MIN_TASKS.div_ceil(tiles.len().max(1)).min(n.div_ceil(LANES)).max(1);
     let run = n.div_ceil(runs).next_multiple_of(LANES).max(LANES);
+    // A run of 2^32 samples (n near u32::MAX) saturates to the range's end.
+    let run32 = u32::try_from(run).unwrap_or(u32::MAX);
     let end = samples.end;
     tiles
         .into_iter()
@@ -292,7 +299,7 @@ fn tasks(width: u32, height: u32, samples: Range<u32>) -> Vec<Task> {
             samples.clone().step_by(run).map(move |first| Task {
                 origin,
                 size,
-                samples: first..first.saturating_add(run as u32).min(end),
+                samples: first..first.saturating_add(run32).min(end),
             })
         })
         .collect()
@@ -318,7 +325,7 @@ fn render_impl(
     pool.broadcast(|_| {
         let mut ws = Workspace { strategies: record.then(Vec::new), ..Workspace::default() };
         queue.work(|i| {
-            let out = render_tile(scene, integrator, seed, &mut ws, w, &tasks[i]);
+            let out = render_task(scene, integrator, seed, &mut ws, w, &tasks[i]);
             bar.inc(out.sums.len() as u64 * out.spp);
             out
         });
@@ -333,12 +340,12 @@ fn render_impl(
     RenderStats { wall: start.elapsed(), samples: spp * w as u64 * h as u64, rays, threads: pool.current_num_threads() }
 }
 
-/// Where finished tiles go: the film, the per-strategy images, the ray count.
+/// Where finished tasks go: the film, the per-strategy images, the ray count.
 struct Merge<'a> {
     film: &'a mut Film,
     strategies: Option<&'a mut StrategyImages>,
     rays: u64,
-    /// Splats of merged tiles not yet in the film, in tile order.
+    /// Splats of merged tasks not yet in the film, in task order.
     splats: Vec<(u32, Vec3)>,
 }
 
@@ -346,26 +353,26 @@ struct Merge<'a> {
 const SPLAT_BATCH: usize = 1 << 20;
 
 impl Merge<'_> {
-    fn add(&mut self, mut out: TileOutput) {
+    fn add(&mut self, mut out: TaskOutput) {
         self.rays += out.rays;
-        if let (Some(images), Some(tile)) = (self.strategies.as_deref_mut(), out.strategies.take()) {
-            merge_tile_strategies(images, &out, tile);
+        if let (Some(images), Some(records)) = (self.strategies.as_deref_mut(), out.strategies.take()) {
+            merge_task_strategies(images, &out, records);
         }
         self.splats.append(&mut out.splats);
-        merge_tile(self.film, out);
+        merge_task(self.film, out);
         if self.splats.len() >= self.film.sums.len().min(SPLAT_BATCH) {
             self.add_splats();
         }
     }
 
     /// Adds the held splats to the film in pixel order, so that the adds
-    /// stream through it. One tile's splats (~28,000 for 16 x 16 pixels at
+    /// stream through it. One task's splats (~28,000 for 16 x 16 pixels at
     /// 32 spp) land on scattered pixels of the whole film (48 bytes each,
     /// 3 MiB at 256 x 256), which had left the cache by the next merge:
-    /// added one tile at a time, even in pixel order, they cost `bdpt` 2.3 %
+    /// added one task at a time, even in pixel order, they cost `bdpt` 2.3 %
     /// of its time and `light` 7 %. Held until there are about as many as
     /// pixels, one pass over the film serves them all (docs/performance-log.md,
-    /// "Session 18"). The order is a function of the tiles' order, so the
+    /// "Session 18"). The order is a function of the tasks' order, so the
     /// film's drop decisions stay deterministic.
     fn add_splats(&mut self) {
         radsort::sort_by_key(&mut self.splats, |&(pixel, _)| pixel);
@@ -396,7 +403,7 @@ struct QueueState<'a> {
     next: usize,
     /// Tasks before this one are in the merge.
     merged: usize,
-    finished: BTreeMap<usize, TileOutput>,
+    finished: BTreeMap<usize, TaskOutput>,
     merge: Merge<'a>,
     /// A worker panicked: the others stop taking tasks (and stop waiting
     /// for one that will never be merged).
@@ -413,7 +420,7 @@ impl<'a> TaskQueue<'a> {
     }
 
     /// A worker's loop: renders tasks until none is left.
-    fn work(&self, mut render: impl FnMut(usize) -> TileOutput) {
+    fn work(&self, mut render: impl FnMut(usize) -> TaskOutput) {
         let _abandon = AbandonOnPanic(self);
         while let Some(i) = self.take() {
             let out = render(i);
@@ -436,7 +443,7 @@ impl<'a> TaskQueue<'a> {
 
     /// Task `i`'s output; merges every finished task that no earlier one
     /// still holds back.
-    fn finish(&self, i: usize, out: TileOutput) {
+    fn finish(&self, i: usize, out: TaskOutput) {
         let mut st = self.lock();
         st.finished.insert(i, out);
         loop {
@@ -486,16 +493,16 @@ fn progress_bar(visible: bool, film: &Film, samples: &Range<u32>) -> ProgressBar
     bar
 }
 
-fn render_tile(
+fn render_task(
     scene: &Scene,
     integrator: &dyn Integrator,
     seed: u64,
     ws: &mut Workspace,
     width: u32,
     task: &Task,
-) -> TileOutput {
+) -> TaskOutput {
     let Task { origin, size, ref samples } = *task;
-    let mut out = TileOutput {
+    let mut out = TaskOutput {
         origin,
         size,
         spp: samples.len() as u64,
@@ -503,7 +510,7 @@ fn render_tile(
         splats: Vec::new(),
         dropped: DroppedSamples::default(),
         rays: 0,
-        strategies: ws.strategies.is_some().then(TileStrategies::default),
+        strategies: ws.strategies.is_some().then(TaskStrategies::default),
     };
     let image = UVec2::new(width, scene.camera.height);
     crate::scene::take_ray_count();
@@ -553,7 +560,7 @@ fn splat_pixel(raster: Vec2, image: UVec2) -> u32 {
     p.y * image.x + p.x
 }
 
-impl TileOutput {
+impl TaskOutput {
     /// One sample taken alone (`Integrator::sample`), with its splats and
     /// strategy records.
     #[allow(clippy::too_many_arguments)]
@@ -576,12 +583,12 @@ impl TileOutput {
         let cmf = SampledCmf::linear_srgb(lambda);
         self.add_sample(local, l, &ws.splats, &cmf, image);
         let n = self.sums.len();
-        if let (Some(tile), Some(records)) = (self.strategies.as_mut(), ws.strategies.as_ref()) {
-            tile.add(records, local, n, &cmf, image);
+        if let (Some(task), Some(records)) = (self.strategies.as_mut(), ws.strategies.as_ref()) {
+            task.add(records, local, n, &cmf, image);
         }
     }
 
-    /// One camera sample of the tile's pixel `local` (value `l`) and the
+    /// One camera sample of the task's pixel `local` (value `l`) and the
     /// splats it made, converted to colour with the matching functions at
     /// the sample's final wavelengths; what the film cannot take is counted,
     /// not added. A zero estimate (light tracing's, always) adds nothing.
@@ -601,8 +608,8 @@ impl TileOutput {
     }
 }
 
-impl TileStrategies {
-    /// A sample's strategy records: t >= 2 ones are summed into the tile's
+impl TaskStrategies {
+    /// A sample's strategy records: t >= 2 ones are summed into the task's
     /// pixel `local` (of `n`), t = 1 ones kept as splats.
     fn add(&mut self, records: &[StrategyRecord], local: usize, n: usize, cmf: &SampledCmf, image: UVec2) {
         for r in records {
@@ -628,9 +635,9 @@ fn add_pair(sum: &mut [[f64; 3]; 2], v: &[[f64; 3]; 2]) {
     }
 }
 
-fn merge_tile_strategies(images: &mut StrategyImages, out: &TileOutput, tile: TileStrategies) {
+fn merge_task_strategies(images: &mut StrategyImages, out: &TaskOutput, records: TaskStrategies) {
     let width = images.width;
-    for ((s, t), sums) in tile.pixels {
+    for ((s, t), sums) in records.pixels {
         let buffers = images.buffers(s, t);
         for y in 0..out.size.y {
             for x in 0..out.size.x {
@@ -639,10 +646,10 @@ fn merge_tile_strategies(images: &mut StrategyImages, out: &TileOutput, tile: Ti
             }
         }
     }
-    for (i, s, t, v) in tile.splats {
+    for (i, s, t, v) in records.splats {
         add_to_buffers(images.buffers(s, t), i as usize, &v);
     }
-    images.dropped.merge(&tile.dropped);
+    images.dropped.merge(&records.dropped);
 }
 
 /// Adds a [weighted, unweighted] pair to pixel `i` of a strategy's buffers.
@@ -658,7 +665,7 @@ fn add_to_buffers(buffers: &mut [Vec<[f64; 3]>; 2], i: usize, v: &[[f64; 3]; 2])
 /// `Merge::add_splats`). What would carry a pixel's sum out of the film's
 /// range is dropped and counted as infinite: a splat, or the task's samples
 /// of a pixel.
-fn merge_tile(film: &mut Film, out: TileOutput) {
+fn merge_task(film: &mut Film, out: TaskOutput) {
     for y in 0..out.size.y {
         for x in 0..out.size.x {
             let i = ((out.origin.y + y) * film.width + out.origin.x + x) as usize;
@@ -697,5 +704,12 @@ mod tests {
         assert_eq!(tasks(40, 24, 0..64).len(), 6 * 8);
         assert_eq!(tasks(144, 128, 0..4096).len(), 9 * 8);
         assert!(tasks(16, 16, 0..0).is_empty());
+        // Ranges too long to count one by one: the runs still add up to every sample.
+        for (w, h, samples) in [(144, 128, 0..u32::MAX), (144, 128, 7..u32::MAX), (16, 16, 0..u32::MAX)] {
+            let cut = tasks(w, h, samples.clone());
+            assert!(cut.iter().all(|t| !t.samples.is_empty()), "{w}x{h}, {samples:?}: an empty task");
+            let covered: u64 = cut.iter().map(|t| (t.size.x * t.size.y) as u64 * t.samples.len() as u64).sum();
+            assert_eq!(covered, (w * h) as u64 * samples.len() as u64, "{w}x{h}, {samples:?}");
+        }
     }
 }
