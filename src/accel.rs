@@ -244,6 +244,30 @@ impl Accel {
         self.traverse::<true>(&pre, skip, &mut t_max).is_some()
     }
 
+    /// Calls `visit` with the slot of every triangle whose leaf box overlaps
+    /// `query` (bounds included), and of some near it: the quantized child
+    /// boxes enclose their triangles, so none that overlaps is missed. For
+    /// scene checks that compare neighbouring triangles
+    /// (`Scene::emitters_on_surfaces`), not for rendering.
+    pub fn overlapping(&self, query: (Vec3A, Vec3A), mut visit: impl FnMut(u32)) {
+        let query = Aabb::new(query.0, query.1);
+        let mut stack = if self.bvh.nodes.is_empty() { Vec::new() } else { vec![0u32] };
+        while let Some(i) = stack.pop() {
+            let node = &self.bvh.nodes[i as usize];
+            // Octant 0: inner children's bits are 24 + their slot, and
+            // their nodes follow `child_base_idx` in slot order.
+            let hits = node.intersect_aabb(&query, 0);
+            for slot in (0..8).filter(|s| hits & 1 << (24 + s) != 0) {
+                stack.push(node.child_base_idx + (node.imask as u32 & ((1 << slot) - 1)).count_ones());
+            }
+            let mut tris = hits & 0x00ff_ffff;
+            while tris != 0 {
+                visit(node.primitive_base_idx + tris.trailing_zeros());
+                tris &= tris - 1;
+            }
+        }
+    }
+
     /// Ylitie, Karras & Laine 2017, algorithm 1, on the CPU: visits the
     /// nodes whose boxes the ray enters before `t_max`, inner children in
     /// the order of the ray's octant, and tests the triangle slots of a
@@ -865,6 +889,47 @@ mod tests {
             }
         }
         assert!(hits > 1000 && misses > 1000, "{hits} hits, {misses} misses");
+    }
+
+    /// `overlapping` visits each slot at most once and every slot whose
+    /// triangle's bounds meet the query box, including boxes that only
+    /// touch one (a corner of a triangle's bounds as the query), and far
+    /// fewer than all for small boxes (it is a query, not a scan).
+    #[test]
+    fn overlapping_finds_every_triangle_whose_box_meets_the_query() {
+        let mut f = uniform(0x6a09_e667_f3bc_c908);
+        let tris: Vec<[Vec3A; 3]> = (0..3000)
+            .map(|_| {
+                let c = Vec3A::new(f(), f(), f()) * 10.0;
+                [c, c + Vec3A::new(f(), f(), f()), c + Vec3A::new(f(), f(), f())]
+            })
+            .collect();
+        let a = Accel::build(&tris);
+        let n = a.slot_prims().len();
+        let bounds = |s: u32| {
+            let v = a.vertices(s);
+            (v[0].min(v[1]).min(v[2]), v[0].max(v[1]).max(v[2]))
+        };
+        let mut visited_total = 0;
+        for i in 0..600 {
+            let query = if i % 3 == 0 {
+                let corner = bounds((i * 7 % n) as u32).1;
+                (corner, corner)
+            } else {
+                let lo = Vec3A::new(f(), f(), f()) * 11.0 - 0.5;
+                (lo, lo + Vec3A::new(f(), f(), f()) * if i % 3 == 1 { 0.3 } else { 4.0 })
+            };
+            let mut seen = vec![0u32; n];
+            a.overlapping(query, |s| seen[s as usize] += 1);
+            assert!(seen.iter().all(|&c| c <= 1), "query {i}: a slot visited twice");
+            for s in 0..n as u32 {
+                let (lo, hi) = bounds(s);
+                let meets = lo.cmple(query.1).all() && hi.cmpge(query.0).all();
+                assert!(!meets || seen[s as usize] == 1, "query {i} {query:?}: slot {s} missed");
+            }
+            visited_total += seen.iter().sum::<u32>() as usize;
+        }
+        assert!(visited_total < 600 * n / 10, "{visited_total} visits: the query scans");
     }
 
     /// For each of the 8 octants, also with +0 components (which the zero

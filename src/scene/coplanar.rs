@@ -8,14 +8,14 @@
 use super::{mesh_index, Scene};
 use crate::light::{AreaLight, Light};
 use glam::{Vec2, Vec3A};
+use rayon::prelude::*;
 
 impl Scene {
     /// A warning naming the emitting triangles that lie within a few units
     /// in the last place of a non-emitting triangle's plane and overlap it
-    /// with positive area (a shared edge is no overlap), if any do. A
-    /// triangle outside the emitters' joint bounds is passed over at once;
-    /// one inside is tested against each emitter (a large emissive mesh
-    /// spread through the scene makes this slow).
+    /// with positive area (a shared edge is no overlap), if any do. Each
+    /// emitter is tested against the triangles the BVH finds near its
+    /// bounds only, so the check costs about a ray query per emitter.
     pub fn emitters_on_surfaces(&self) -> Option<String> {
         let emitters: Vec<(&AreaLight, &str)> = (self.lights.iter().zip(&self.light_names))
             .filter_map(|(l, name)| match l {
@@ -23,25 +23,29 @@ impl Scene {
                 _ => None,
             })
             .collect();
-        if emitters.is_empty() {
-            return None;
-        }
-        let emitter_slots: Vec<u32> = emitters.iter().map(|(a, _)| a.slot).collect();
-        let all = bounds(emitters.iter().flat_map(|(a, _)| a.v));
-        let pad = near([all.0, all.1]);
-        let mut found: Vec<(&str, &str)> = Vec::new();
-        for (slot, &prim) in self.accel.slot_prims().iter().enumerate() {
-            let t = self.accel.vertices(slot as u32);
-            if apart(all, bounds(t), pad) || emitter_slots.contains(&(slot as u32)) {
-                continue;
-            }
-            for &(e, name) in &emitters {
-                if !found.iter().any(|f| f.0 == name) && lies_on(&e.v, e.n, &t) {
-                    let material = self.meshes[mesh_index(&self.meshes, prim)].material;
-                    found.push((name, &self.materials[material as usize].name));
+        let mut emitter_slots: Vec<u32> = emitters.iter().map(|(a, _)| a.slot).collect();
+        emitter_slots.sort_unstable();
+        // No triangle's tolerance in `lies_on` exceeds this one's: it
+        // covers the largest coordinate of the scene.
+        let (lo, hi) = self.accel.bounds();
+        let surface_of = |e: &AreaLight| {
+            let pad = 2.0 * near(e.v.iter().copied().chain([lo, hi]));
+            let (e_lo, e_hi) = bounds(e.v);
+            let mut material = None;
+            self.accel.overlapping((e_lo - pad, e_hi + pad), |slot| {
+                if material.is_none()
+                    && emitter_slots.binary_search(&slot).is_err()
+                    && lies_on(&e.v, e.n, &self.accel.vertices(slot))
+                {
+                    let prim = self.accel.slot_prims()[slot as usize];
+                    let mesh = &self.meshes[mesh_index(&self.meshes, prim)];
+                    material = Some(self.materials[mesh.material as usize].name.as_str());
                 }
-            }
-        }
+            });
+            material
+        };
+        let found: Vec<(&str, &str)> =
+            emitters.par_iter().filter_map(|&(e, name)| Some((name, surface_of(e)?))).collect();
         let (name, material) = found.first()?;
         let more = match found.len() {
             1 => String::new(),
