@@ -853,6 +853,16 @@ mod tests {
         }
     }
 
+    /// 3000 small random triangles in a 10-unit cube.
+    fn random_triangles(f: &mut impl FnMut() -> f32) -> Vec<[Vec3A; 3]> {
+        (0..3000)
+            .map(|_| {
+                let c = Vec3A::new(f(), f(), f()) * 10.0;
+                [c, c + Vec3A::new(f(), f(), f()), c + Vec3A::new(f(), f(), f())]
+            })
+            .collect()
+    }
+
     /// The 8-lane node test computes the same mask as the 4-lane one, for
     /// every node of a random scene's tree and rays of all octants, with
     /// t_max cutting some children off.
@@ -860,13 +870,7 @@ mod tests {
     #[test]
     fn node_test_8_lanes_matches_4_lanes() {
         let mut f = uniform(0x2545_f491_4f6c_dd1d);
-        let tris: Vec<[Vec3A; 3]> = (0..3000)
-            .map(|_| {
-                let c = Vec3A::new(f(), f(), f()) * 10.0;
-                [c, c + Vec3A::new(f(), f(), f()), c + Vec3A::new(f(), f(), f())]
-            })
-            .collect();
-        let a = Accel::build(&tris);
+        let a = Accel::build(&random_triangles(&mut f));
         assert!(a.bvh.nodes.len() > 100);
         let (mut hits, mut misses) = (0, 0);
         for i in 0..20_000 {
@@ -898,13 +902,7 @@ mod tests {
     #[test]
     fn overlapping_finds_every_triangle_whose_box_meets_the_query() {
         let mut f = uniform(0x6a09_e667_f3bc_c908);
-        let tris: Vec<[Vec3A; 3]> = (0..3000)
-            .map(|_| {
-                let c = Vec3A::new(f(), f(), f()) * 10.0;
-                [c, c + Vec3A::new(f(), f(), f()), c + Vec3A::new(f(), f(), f())]
-            })
-            .collect();
-        let a = Accel::build(&tris);
+        let a = Accel::build(&random_triangles(&mut f));
         let n = a.slot_prims().len();
         let bounds = |s: u32| {
             let v = a.vertices(s);
