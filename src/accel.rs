@@ -244,11 +244,17 @@ impl Accel {
         self.traverse::<true>(&pre, skip, &mut t_max).is_some()
     }
 
-    /// Calls `visit` with the slot of every triangle whose leaf box overlaps
-    /// `query` (bounds included), and of some near it: the quantized child
-    /// boxes enclose their triangles, so none that overlaps is missed. For
-    /// scene checks that compare neighbouring triangles
-    /// (`Scene::emitters_on_surfaces`), not for rendering.
+    /// Calls `visit` with the slot of every triangle whose bounds overlap
+    /// `query` (touching counts), and of some near it. None is missed,
+    /// though a quantized child box may fall half a unit in the last place
+    /// short of its triangles (wide_bvh/node.rs): obvhs's `intersect_aabb`
+    /// maps the query to the node's grid with the very operations the
+    /// builder used, fl(x - p) times a power of two, and rounding keeps
+    /// order, so a triangle bound below the query's max maps below it too
+    /// (and likewise for the min). A builder that quantized otherwise (in
+    /// f64, say) would have to pad this query. For scene checks that
+    /// compare neighbouring triangles (`Scene::emitters_on_surfaces`), not
+    /// for rendering.
     pub fn overlapping(&self, query: (Vec3A, Vec3A), mut visit: impl FnMut(u32)) {
         let query = Aabb::new(query.0, query.1);
         let mut stack = if self.bvh.nodes.is_empty() { Vec::new() } else { vec![0u32] };
@@ -898,36 +904,54 @@ mod tests {
     /// `overlapping` visits each slot at most once and every slot whose
     /// triangle's bounds meet the query box, including boxes that only
     /// touch one (a corner of a triangle's bounds as the query), and far
-    /// fewer than all for small boxes (it is a query, not a scan).
+    /// fewer than all for small boxes (it is a query, not a scan). Two
+    /// scenes: random triangles, and flat ones in the axis-aligned planes
+    /// y = 2.5 and (one unit in the last place above) y = 2.5+, whose nodes
+    /// have zero extent in y and the finest grid step: the coplanar check's
+    /// case. (Taking the inner children in the wrong order, octant 3, fails
+    /// it.)
     #[test]
     fn overlapping_finds_every_triangle_whose_box_meets_the_query() {
         let mut f = uniform(0x6a09_e667_f3bc_c908);
-        let a = Accel::build(&random_triangles(&mut f));
-        let n = a.slot_prims().len();
-        let bounds = |s: u32| {
-            let v = a.vertices(s);
-            (v[0].min(v[1]).min(v[2]), v[0].max(v[1]).max(v[2]))
-        };
-        let mut visited_total = 0;
-        for i in 0..600 {
-            let query = if i % 3 == 0 {
-                let corner = bounds((i * 7 % n) as u32).1;
-                (corner, corner)
-            } else {
-                let lo = Vec3A::new(f(), f(), f()) * 11.0 - 0.5;
-                (lo, lo + Vec3A::new(f(), f(), f()) * if i % 3 == 1 { 0.3 } else { 4.0 })
+        let plane = |i: usize| if i % 5 == 0 { 2.5f32.next_up() } else { 2.5 };
+        let flat: Vec<[Vec3A; 3]> = (0..3000)
+            .map(|i| {
+                let c = Vec3A::new(f() * 10.0, plane(i), f() * 10.0);
+                [c, c + Vec3A::new(f(), 0.0, f()), c + Vec3A::new(f(), 0.0, f())]
+            })
+            .collect();
+        for (scene, tris) in [("random", random_triangles(&mut f)), ("flat", flat)] {
+            let a = Accel::build(&tris);
+            let n = a.slot_prims().len();
+            let bounds = |s: u32| {
+                let v = a.vertices(s);
+                (v[0].min(v[1]).min(v[2]), v[0].max(v[1]).max(v[2]))
             };
-            let mut seen = vec![0u32; n];
-            a.overlapping(query, |s| seen[s as usize] += 1);
-            assert!(seen.iter().all(|&c| c <= 1), "query {i}: a slot visited twice");
-            for s in 0..n as u32 {
-                let (lo, hi) = bounds(s);
-                let meets = lo.cmple(query.1).all() && hi.cmpge(query.0).all();
-                assert!(!meets || seen[s as usize] == 1, "query {i} {query:?}: slot {s} missed");
+            let mut visited_total = 0;
+            for i in 0..600 {
+                let query = if i % 3 == 0 {
+                    let corner = bounds((i * 7 % n) as u32).1;
+                    (corner, corner)
+                } else {
+                    let lo = Vec3A::new(f(), f(), f()) * 11.0 - 0.5;
+                    let mut q = (lo, lo + Vec3A::new(f(), f(), f()) * if i % 3 == 1 { 0.3 } else { 4.0 });
+                    if scene == "flat" {
+                        (q.0.y, q.1.y) = (plane(i), plane(i));
+                    }
+                    q
+                };
+                let mut seen = vec![0u32; n];
+                a.overlapping(query, |s| seen[s as usize] += 1);
+                assert!(seen.iter().all(|&c| c <= 1), "{scene}, query {i}: a slot visited twice");
+                for s in 0..n as u32 {
+                    let (lo, hi) = bounds(s);
+                    let meets = lo.cmple(query.1).all() && hi.cmpge(query.0).all();
+                    assert!(!meets || seen[s as usize] == 1, "{scene}, query {i} {query:?}: slot {s} missed");
+                }
+                visited_total += seen.iter().sum::<u32>() as usize;
             }
-            visited_total += seen.iter().sum::<u32>() as usize;
+            assert!(visited_total < 600 * n / 10, "{scene}: {visited_total} visits: the query scans");
         }
-        assert!(visited_total < 600 * n / 10, "{visited_total} visits: the query scans");
     }
 
     /// For each of the 8 octants, also with +0 components (which the zero

@@ -686,7 +686,10 @@ mod tests {
     /// than `MIN_TASKS` is cut into runs while a larger one is not.
     #[test]
     fn tasks_cover_every_pixel_sample_once() {
-        for (w, h, samples) in [(16, 16, 0..4096), (16, 16, 3..40), (40, 24, 0..64), (8, 8, 0..1), (144, 128, 0..9)] {
+        let top = u32::MAX - 100..u32::MAX;
+        for (w, h, samples) in
+            [(16, 16, 0..4096), (16, 16, 3..40), (40, 24, 0..64), (8, 8, 0..1), (144, 128, 0..9), (16, 16, top)]
+        {
             let n = samples.len();
             let mut count = vec![0u32; (w * h) as usize * n];
             for t in tasks(w, h, samples.clone()) {
@@ -704,12 +707,23 @@ mod tests {
         assert_eq!(tasks(40, 24, 0..64).len(), 6 * 8);
         assert_eq!(tasks(144, 128, 0..4096).len(), 9 * 8);
         assert!(tasks(16, 16, 0..0).is_empty());
-        // Ranges too long to count one by one: the runs still add up to every sample.
-        for (w, h, samples) in [(144, 128, 0..u32::MAX), (144, 128, 7..u32::MAX), (16, 16, 0..u32::MAX)] {
+        // Ranges too long to count one by one, the first two with runs of
+        // 2^32 (which a u32 would wrap to 0): each tile's runs follow one
+        // another from the range's start to its end.
+        for (w, h, samples) in [(144, 128, 0..u32::MAX), (144, 128, 1..u32::MAX), (16, 16, 0..u32::MAX)] {
             let cut = tasks(w, h, samples.clone());
-            assert!(cut.iter().all(|t| !t.samples.is_empty()), "{w}x{h}, {samples:?}: an empty task");
-            let covered: u64 = cut.iter().map(|t| (t.size.x * t.size.y) as u64 * t.samples.len() as u64).sum();
-            assert_eq!(covered, (w * h) as u64 * samples.len() as u64, "{w}x{h}, {samples:?}");
+            for tile in cut.chunk_by(|a, b| a.origin == b.origin) {
+                let ends = tile.iter().map(|t| (t.samples.start, t.samples.end));
+                let joined = ends.clone().zip(ends.skip(1)).all(|(a, b)| a.1 == b.0);
+                let (first, last) = (&tile[0].samples, &tile[tile.len() - 1].samples);
+                assert!(
+                    joined && first.start == samples.start && last.end == samples.end,
+                    "{w}x{h}, {samples:?}: tile {:?} is cut into {:?}",
+                    tile[0].origin,
+                    tile.iter().map(|t| &t.samples).collect::<Vec<_>>()
+                );
+                assert!(tile.iter().all(|t| !t.samples.is_empty()), "{w}x{h}, {samples:?}: an empty task");
+            }
         }
     }
 }

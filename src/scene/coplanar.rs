@@ -6,6 +6,7 @@
 //! (docs/scene-format.md). Estimators cannot fix this; the scene can.
 
 use super::{mesh_index, Scene};
+use crate::geometry::NO_TRIANGLE;
 use crate::light::{AreaLight, Light};
 use glam::{Vec2, Vec3A};
 use rayon::prelude::*;
@@ -17,16 +18,19 @@ impl Scene {
     /// emitter is tested against the triangles the BVH finds near its
     /// bounds only, so the check costs about a ray query per emitter.
     pub fn emitters_on_surfaces(&self) -> Option<String> {
+        // An emitter left out of the BVH (collinear vertices) is never hit,
+        // so no rounding decides anything there.
         let emitters: Vec<(&AreaLight, &str)> = (self.lights.iter().zip(&self.light_names))
             .filter_map(|(l, name)| match l {
-                Light::Area(a) => Some((a, name.as_str())),
+                Light::Area(a) if a.slot != NO_TRIANGLE => Some((a, name.as_str())),
                 _ => None,
             })
             .collect();
         let mut emitter_slots: Vec<u32> = emitters.iter().map(|(a, _)| a.slot).collect();
         emitter_slots.sort_unstable();
-        // No triangle's tolerance in `lies_on` exceeds this one's: it
-        // covers the largest coordinate of the scene.
+        // Half the pad is already no less than any triangle's tolerance in
+        // `lies_on`: it covers the largest coordinate of the scene. The
+        // other half covers the rounding of the padded bounds.
         let (lo, hi) = self.accel.bounds();
         let surface_of = |e: &AreaLight| {
             let pad = 2.0 * near(e.v.iter().copied().chain([lo, hi]));
