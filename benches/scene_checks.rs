@@ -2,8 +2,8 @@
 //! of many emitters: `Scene::emitters_on_surfaces` (the coplanar-emitter
 //! warning, one BVH box query per emitting triangle) on the Cornell box with
 //! an emitting icosphere and a plain one beside it, 2 x 20 x 4^s triangles.
-//! Until session 31 it tested every triangle against every emitter:
-//! 3.2 s at s = 6 and 85 s at s = 7 (docs/performance-log.md).
+//! Until session 31 it tested every triangle against every emitter, and
+//! start-up took 3.2 s at s = 6 and 85 s at s = 7 (docs/performance-log.md).
 //!
 //! `cargo bench --bench scene_checks`; criterion reports elements/s =
 //! emitting triangles checked per second.
