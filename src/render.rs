@@ -712,7 +712,9 @@ mod tests {
         // another from the range's start to its end.
         for (w, h, samples) in [(144, 128, 0..u32::MAX), (144, 128, 1..u32::MAX), (16, 16, 0..u32::MAX)] {
             let cut = tasks(w, h, samples.clone());
-            for tile in cut.chunk_by(|a, b| a.origin == b.origin) {
+            let tiles = cut.chunk_by(|a, b| a.origin == b.origin);
+            assert_eq!(tiles.clone().count(), tile_grid(w, h).len(), "{w}x{h}, {samples:?}: a tile left out");
+            for tile in tiles {
                 let ends = tile.iter().map(|t| (t.samples.start, t.samples.end));
                 let joined = ends.clone().zip(ends.skip(1)).all(|(a, b)| a.1 == b.0);
                 let (first, last) = (&tile[0].samples, &tile[tile.len() - 1].samples);

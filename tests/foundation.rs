@@ -112,6 +112,7 @@ fn a_one_tile_image_cut_into_runs_is_the_same_image() {
         for threads in [1, 2] {
             let cut = film_of(threads, &mut std::iter::once(0..64));
             assert!(cut.sums == reference.sums, "{name}, {threads} threads: the cut changed the image");
+            assert_eq!(cut.spp, reference.spp, "{name}, {threads} threads: the cut changed the sample count");
         }
     }
 }
