@@ -521,7 +521,7 @@ fn render_task(
             for first in samples.clone().step_by(LANES) {
                 // Up to LANES samples at a time, each with its own stream
                 // (the vectors are the worker's, taken out while in use).
-                let last = (first + LANES as u32).min(samples.end);
+                let last = first.saturating_add(LANES as u32).min(samples.end);
                 let stream = (pixel.y * width + pixel.x) as u64;
                 let (mut samplers, mut lambdas) = (std::mem::take(&mut ws.samplers), std::mem::take(&mut ws.lambdas));
                 samplers.clear();

@@ -117,6 +117,32 @@ fn a_one_tile_image_cut_into_runs_is_the_same_image() {
     }
 }
 
+/// The last sample indices a u32 holds render like any others: every one
+/// of the top 7, alone, puts light on the Cornell box's film, and one call
+/// of all 7 is their sum (a packet's end once wrapped past u32::MAX, so a
+/// packet at the top rendered nothing while the film counted its samples).
+#[test]
+fn the_top_sample_indices_render() {
+    let (w, h) = (16, 16);
+    let s = scene("cornell-box.json", w, h);
+    let opts = RenderOptions { seed: 3, threads: 1, progress: false };
+    let top = u32::MAX - 7..u32::MAX;
+    for name in ["path", "light"] {
+        let it = integrator(name);
+        let mut alone = Film::new(w, h);
+        for i in top.clone() {
+            let mut film = Film::new(w, h);
+            render(&s, it.as_ref(), &opts, &mut film, i..i + 1);
+            assert!(film.sums.iter().any(|p| p.iter().any(|&c| c > 0)), "{name}: sample {i} is black");
+            alone.add(&film).unwrap();
+        }
+        let mut together = Film::new(w, h);
+        render(&s, it.as_ref(), &opts, &mut together, top.clone());
+        assert_eq!(together.spp, 7);
+        assert!(together.sums == alone.sums, "{name}: samples {top:?} in one call differ from one by one");
+    }
+}
+
 /// An estimator that panics on one pixel: the render must re-raise the
 /// panic, not wait forever for the lost tile's merge.
 struct PanicsAt(UVec2);
