@@ -267,6 +267,39 @@ fn unsupported_features_are_named_errors() {
     assert!(e.contains("not a regular file"), "{e}");
 }
 
+/// glTF's nodes form disjoint trees (glTF 2.0, 3.5.3 "Node hierarchy": no
+/// node is the child of two parents or a root and a child). A node reached
+/// twice is an error that names it: walked as given, a chain of nodes each
+/// listing its child twice is a walk of 2^depth nodes (it hung the loader).
+#[test]
+fn a_node_reached_twice_is_an_error() {
+    let v = read_json(&dir().join("Triangle.gltf"));
+    let with = |nodes: Value, roots: Value| {
+        let mut v = v.clone();
+        v["nodes"] = nodes;
+        v["scenes"][0]["nodes"] = roots;
+        v
+    };
+    let cases = [
+        ("twice a child", json!([{"children": [1, 1]}, {"mesh": 0}]), json!([0]), "nodes[1]"),
+        ("root and child", json!([{"children": [1]}, {"mesh": 0}]), json!([0, 1]), "nodes[1]"),
+        ("twice a root", json!([{"mesh": 0}]), json!([0, 0]), "nodes[0]"),
+        ("its own child", json!([{"mesh": 0, "children": [0]}]), json!([0]), "nodes[0]"),
+    ];
+    for (what, nodes, roots, node) in cases {
+        let e = parse(&with(nodes, roots), what).err().unwrap_or_else(|| panic!("{what}: loaded"));
+        assert!(e.contains(&format!("{node}: the node is reached twice")), "{what}: {e}");
+    }
+    let mut chain: Vec<Value> = (1..=64).map(|i| json!({"children": [i, i]})).collect();
+    chain.push(json!({"mesh": 0}));
+    let e = parse(&with(json!(chain), json!([0])), "chain").err().unwrap();
+    assert!(e.contains("nodes[64]: the node is reached twice"), "{e}");
+    // One node in the trees of two scenes is allowed: one scene renders.
+    let mut two = with(json!([{"mesh": 0}]), json!([0]));
+    two["scenes"] = json!([{"nodes": [0]}, {"nodes": [0]}]);
+    assert!(parse(&two, "two scenes").is_ok());
+}
+
 #[test]
 fn json_scene_includes_gltf_with_material_overrides() {
     let scene_text = |materials: &str, material: &str| {

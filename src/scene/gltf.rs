@@ -40,6 +40,7 @@ use glam::{Affine3A, DVec3, Mat4, Vec3A};
 use gltf::mesh::Mode;
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
+use std::rc::Rc;
 
 /// Extensions whose data the loader reads; others are ignored with a
 /// warning, or refused when the file requires them.
@@ -205,7 +206,8 @@ struct MappedMaterial {
 
 struct Importer {
     file: String,
-    doc: gltf::Document,
+    /// Shared so that walking it while the importer changes is cheap.
+    doc: Rc<gltf::Document>,
     buffers: Vec<Vec<u8>>,
     dir: PathBuf,
     /// The materials primitives use, in order of first use.
@@ -260,7 +262,7 @@ impl Importer {
         let doc = gltf::Document::from_json(json).map_err(|e| fail("", format!("invalid glTF: {e}")))?;
         let mut imp = Importer {
             file: file.to_string(),
-            doc,
+            doc: Rc::new(doc),
             buffers: Vec::new(),
             dir: dir.to_path_buf(),
             materials: Vec::new(),
@@ -344,13 +346,17 @@ impl Importer {
         let roots: Vec<usize> = self.doc.scenes().nth(scene).expect("scene index").nodes().map(|n| n.index()).collect();
         let mut content = Content { meshes: Vec::new(), lights: Vec::new(), camera: None };
         let mut cameras = 0;
-        let mut stack: Vec<(usize, Affine3A, u32)> = roots.into_iter().rev().map(|n| (n, root, 0)).collect();
-        while let Some((index, parent, depth)) = stack.pop() {
-            let doc = self.doc.clone();
+        let doc = Rc::clone(&self.doc);
+        // glTF 2.0, 3.5.3: the nodes form disjoint trees, so a walk meets
+        // each node once (a node met again would be a cycle, or a walk that
+        // grows as 2^depth).
+        let mut reached = vec![false; doc.nodes().len()];
+        let mut stack: Vec<(usize, Affine3A)> = roots.into_iter().rev().map(|n| (n, root)).collect();
+        while let Some((index, parent)) = stack.pop() {
             let node = doc.nodes().nth(index).expect("validated node index");
             let label = label("nodes", index, node.name());
-            if depth > 256 {
-                return Err(self.fail(&label, "the node hierarchy is deeper than 256 levels (a cycle?)"));
+            if std::mem::replace(&mut reached[index], true) {
+                return Err(self.fail(&label, "the node is reached twice: glTF nodes form disjoint trees"));
             }
             let local = Affine3A::from_mat4(Mat4::from_cols_array_2d(&node.transform().matrix()));
             let world = parent * local;
@@ -381,9 +387,7 @@ impl Importer {
             if let Some(light) = node.light() {
                 self.import_light(&light, world, &label, &mut content)?;
             }
-            for child in node.children().collect::<Vec<_>>().into_iter().rev() {
-                stack.push((child.index(), world, depth + 1));
-            }
+            stack.extend(node.children().map(|c| (c.index(), world)).collect::<Vec<_>>().into_iter().rev());
         }
         if cameras > 1 && content.camera.is_some() && self.own_camera {
             self.note("cameras", format!("{} other camera node(s) not used", cameras - 1));
@@ -599,7 +603,7 @@ impl Importer {
                 *id = o;
                 continue;
             }
-            let doc = self.doc.clone();
+            let doc = Rc::clone(&self.doc);
             let gm = match self.materials[slot].index {
                 Some(i) => doc.materials().nth(i).expect("validated material index"),
                 None => default_material(&doc),
