@@ -259,6 +259,22 @@ fn unsupported_features_are_named_errors() {
     let e = parse(&v, "Triangle (too far apart)").err().unwrap();
     assert!(e.contains("too large to frame a default camera"), "{e}");
 
+    // Emission whose spectrum overflows f32 (a finite colour times the
+    // illuminant's peak) is an error: its power, infinite, left the scene
+    // without a light to sample and rendered it black without a word.
+    let mut v = read_json(&dir().join("LightsPoint.gltf"));
+    v["extensions"]["KHR_lights_punctual"]["lights"][0]["color"] = json!([1.0, 1.0, 1.0]);
+    v["extensions"]["KHR_lights_punctual"]["lights"][0]["intensity"] = json!(3.4e38);
+    let e = parse(&v, "LightsPoint (3.4e38 cd)").err().unwrap();
+    assert!(e.contains("\"PointLightRed\": the emitted spectrum is not finite at every wavelength"), "{e}");
+    let mut v = read_json(&dir().join("cornell-box.gltf"));
+    let light = &mut v["materials"][3];
+    light["extras"]["prism"].as_object_mut().unwrap().remove("emission");
+    light["emissiveFactor"] = json!([1.0, 1.0, 1.0]);
+    light["extensions"]["KHR_materials_emissive_strength"]["emissiveStrength"] = json!(3.4e38);
+    let e = parse(&v, "cornell-box (emissiveStrength 3.4e38)").err().unwrap();
+    assert!(e.contains("materials[3] \"light\": the emitted spectrum is not finite at every wavelength"), "{e}");
+
     // Buffers and images are read only from regular files (a FIFO or a
     // device would hang or exhaust memory).
     let mut v = read_json(&dir().join("Triangle.gltf"));

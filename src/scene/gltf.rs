@@ -462,6 +462,7 @@ impl Importer {
         // coloured white; the colour multiplies it per channel, so a pure
         // red light has the luminance of the red primary times intensity.
         let spectrum = spectrum::rgb_illuminant(color).scale(intensity);
+        self.check_emission(&format!("{label}: light \"{name}\""), &spectrum)?;
         content.lights.push((name, world.translation, spectrum));
         Ok(())
     }
@@ -715,7 +716,21 @@ impl Importer {
                 }
             }
         }
-        Ok((rgb != [0.0; 3]).then(|| (spectrum::rgb_illuminant(rgb), m.double_sided())))
+        if rgb == [0.0; 3] {
+            return Ok(None);
+        }
+        let s = spectrum::rgb_illuminant(rgb);
+        self.check_emission(label, &s)?;
+        Ok(Some((s, m.double_sided())))
+    }
+
+    /// An emitted spectrum must be finite: an infinite one makes the
+    /// scene's light power infinite, leaving no light to sample.
+    fn check_emission(&self, label: &str, s: &Spectrum) -> Result<(), LoadError> {
+        match s.is_finite() {
+            true => Ok(()),
+            false => Err(self.fail(label, "the emitted spectrum is not finite at every wavelength (overflow)")),
+        }
     }
 
     /// The material's `extras.prism` spectra, if any.

@@ -788,11 +788,7 @@ impl<'a> Ctx<'a> {
     /// What every spectrum must be: finite everywhere, and within the range
     /// of its use (a reflectance at most 1, an IOR above 0).
     fn check_spectrum(&self, path: &[Seg], s: Spectrum, usage: Use) -> Result<Spectrum, LoadError> {
-        let finite = match &s {
-            Spectrum::Constant(c) => c.is_finite(),
-            Spectrum::Dense(t) => t.iter().all(|v| v.is_finite()),
-        };
-        if !finite {
+        if !s.is_finite() {
             let why = "the spectrum is not finite at every wavelength (overflow, or a pole of the formula)";
             return Err(self.err(path, why));
         }

@@ -105,6 +105,14 @@ impl Spectrum {
         }
     }
 
+    /// Whether every value over the visible range is finite.
+    pub fn is_finite(&self) -> bool {
+        match self {
+            Spectrum::Constant(c) => c.is_finite(),
+            Spectrum::Dense(t) => t.iter().all(|v| v.is_finite()),
+        }
+    }
+
     /// The smallest value over the visible range.
     pub fn min_value(&self) -> f32 {
         match self {
