@@ -95,6 +95,15 @@ const CASES: &[Case] = &[
         words: &["materials.white.reflectance: \"wavelengths\" are in nanometres, all above 0"],
     },
     Case {
+        // Cauchy: n = a + b / l^2 with b < 0 is negative in the blue: 0.5 - 0.2 / 0.36^2 at 360 nm.
+        id: "negative-cauchy",
+        edits: &[("\"reflectance\": 0.5", "\"reflectance\": {\"cauchy\": {\"a\": 0.5, \"b\": -0.2}}")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:3:61:",
+        words: &["materials.white.reflectance: spectrum values must be >= 0 (min -1.043)"],
+    },
+    Case {
         id: "huge-extinction",
         edits: &[("{\"type\": \"diffuse\", \"reflectance\": 0.5}", "{\"type\": \"conductor\", \"eta\": 1, \"k\": 1e10, \"roughness\": 0.5}")],
         args: &[],

@@ -785,12 +785,16 @@ impl<'a> Ctx<'a> {
         Ok(Spectrum::piecewise_linear(&pts))
     }
 
-    /// What every spectrum must be: finite everywhere, and within the range
-    /// of its use (a reflectance at most 1, an IOR above 0).
+    /// What every spectrum must be: finite and non-negative everywhere, and
+    /// within the range of its use (a reflectance at most 1, an IOR above 0).
     fn check_spectrum(&self, path: &[Seg], s: Spectrum, usage: Use) -> Result<Spectrum, LoadError> {
         if !s.is_finite() {
             let why = "the spectrum is not finite at every wavelength (overflow, or a pole of the formula)";
             return Err(self.err(path, why));
+        }
+        // Formulas (Cauchy with b < 0) can go negative where tables cannot.
+        if s.min_value() < 0.0 {
+            return Err(self.err(path, format!("spectrum values must be >= 0 (min {:.3})", s.min_value())));
         }
         if usage == Use::Reflectance && s.max_value() > 1.0 {
             return Err(self.err(path, format!("a reflectance must not exceed 1 (max {})", s.max_value())));
