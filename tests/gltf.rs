@@ -166,6 +166,32 @@ fn texture_mean_is_srgb_decoded() {
     assert!(has(&g.messages, "baseColorTexture is replaced by its mean ["));
 }
 
+/// Factors outside [0, 1] (invalid glTF) are clamped before a texture's
+/// mean multiplies them: a factor of 1e39, infinite in f32, times a mean of
+/// 0 would be NaN (which only the NaN-dropping max and min further on kept
+/// out of the BSDF).
+#[test]
+fn out_of_range_factors_are_clamped_before_the_texture_mean() {
+    // A 1 x 1 PNG of (0, 0, 255): roughness (G) 0, metallic (B) 1.
+    const BLUE: &str = "iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAIAAACQd1PeAAAADElEQVR4nGNgYPgPAAEDAQAIicLsAAAAAElFTkSuQmCC";
+    let mut v = read_json(&dir().join("BoxTextured.gltf"));
+    v["images"][0]["uri"] = json!(format!("data:image/png;base64,{BLUE}"));
+    v["materials"][0]["pbrMetallicRoughness"] = json!({
+        "metallicRoughnessTexture": {"index": 0}, "metallicFactor": 1.0, "roughnessFactor": 1e39
+    });
+    let g = parse(&v, "BoxTextured (roughnessFactor 1e39)").unwrap();
+    assert!(has(&g.messages, "roughnessFactor [inf] is outside [0, 1] (invalid glTF): clamped"), "{:?}", g.messages);
+    let scene = g.builder.build();
+    let Bsdf::Conductor(c) = &scene.materials[0].bsdf else { panic!("not a conductor") };
+    assert_eq!((c.distrib.alpha_x, c.distrib.alpha_y), (0.0, 0.0), "clamped to 1, times a mean of 0");
+    v["materials"][0]["pbrMetallicRoughness"] =
+        json!({"baseColorTexture": {"index": 0}, "baseColorFactor": [1e39, 1e39, 1e39, 1.0], "metallicFactor": 0.0});
+    let scene = parse(&v, "BoxTextured (baseColorFactor 1e39)").unwrap().builder.build();
+    let Bsdf::Diffuse(d) = &scene.materials[0].bsdf else { panic!("not diffuse") };
+    let blue = reflectance_rgb(&d.reflectance);
+    assert!(blue[0] < 0.05 && blue[1] < 0.05 && blue[2] > 0.95, "reflectance {blue:?}, expected pure blue");
+}
+
 #[test]
 fn primitive_modes_points_and_lines_are_errors_triangle_modes_render() {
     let path = dir().join("MeshPrimitiveModes.gltf");
@@ -274,6 +300,22 @@ fn unsupported_features_are_named_errors() {
     light["extensions"]["KHR_materials_emissive_strength"]["emissiveStrength"] = json!(3.4e38);
     let e = parse(&v, "cornell-box (emissiveStrength 3.4e38)").err().unwrap();
     assert!(e.contains("materials[3] \"light\": the emitted spectrum is not finite at every wavelength"), "{e}");
+
+    // An accessor's byteOffset near 2^64 does not wrap its end round to
+    // the view's start (the indices were read as absent: sequential).
+    let mut v = read_json(&dir().join("Triangle.gltf"));
+    v["accessors"][0]["byteOffset"] = json!(u64::MAX);
+    let e = parse(&v, "Triangle (byteOffset 2^64 - 1)").err().unwrap();
+    assert!(
+        e.contains("accessors[0]: 3 elements of 2 bytes every 2 from byteOffset 18446744073709551615 run past"),
+        "{e}"
+    );
+    // TRIANGLES takes indices three at a time: a count that is not a
+    // multiple of 3 is an error, not a triangle quietly dropped.
+    let mut v = read_json(&dir().join("Triangle.gltf"));
+    v["accessors"][0]["count"] = json!(2);
+    let e = parse(&v, "Triangle (2 indices)").err().unwrap();
+    assert!(e.contains("primitive 0: 2 vertices do not make whole triangles (mode Triangles)"), "{e}");
 
     // Buffers and images are read only from regular files (a FIFO or a
     // device would hang or exhaust memory).

@@ -566,6 +566,12 @@ impl Importer {
         };
         // `check_layout` made each accessor read exactly `count` elements.
         let list = list.unwrap_or_else(|| (0..positions.len() as u32).collect());
+        // glTF 2.0, 3.7.2.1: TRIANGLES takes the vertices three at a time
+        // (the Khronos validator's MESH_PRIMITIVE_INCOMPATIBLE_MODE).
+        if prim.mode() == Mode::Triangles && list.len() % 3 != 0 {
+            let why = format!("{} vertices do not make whole triangles (mode Triangles)", list.len());
+            return Err(self.fail(pwhat, why));
+        }
         if let Some(i) = list.iter().find(|&&i| i as usize >= positions.len()) {
             return Err(self.fail(pwhat, format!("index {i} is out of range ({} positions)", positions.len())));
         }
@@ -628,7 +634,9 @@ impl Importer {
                 self.warn(label, format!("{name} {values:?} is outside [0, 1] (invalid glTF): clamped"));
             }
         }
-        let mut base = pbr.base_color_factor();
+        // Clamped before a texture's mean multiplies them (an infinite
+        // factor times a mean of 0 would be NaN).
+        let mut base = pbr.base_color_factor().map(|c| c.clamp(0.0, 1.0));
         if let Some(info) = pbr.base_color_texture() {
             if let Some(mean) = self.texture_mean(&info.texture(), true, label, "baseColorTexture") {
                 for c in 0..4 {
@@ -636,14 +644,13 @@ impl Importer {
                 }
             }
         }
-        let (mut metallic, mut roughness) = (pbr.metallic_factor(), pbr.roughness_factor());
+        let [mut metallic, mut roughness] = [pbr.metallic_factor(), pbr.roughness_factor()].map(|f| f.clamp(0.0, 1.0));
         if let Some(info) = pbr.metallic_roughness_texture() {
             if let Some(mean) = self.texture_mean(&info.texture(), false, label, "metallicRoughnessTexture") {
                 roughness *= mean[1];
                 metallic *= mean[2];
             }
         }
-        let (metallic, roughness) = (metallic.clamp(0.0, 1.0), roughness.clamp(0.0, 1.0));
         if m.alpha_mode() != gltf::material::AlphaMode::Opaque {
             self.warn(label, format!("alphaMode {:?} is ignored: rendered opaque", m.alpha_mode()));
         }
@@ -651,7 +658,7 @@ impl Importer {
             self.warn(label, "normalTexture is ignored (the BSDFs have no texture lookup)");
         }
         let extras = self.prism_extras(m, label).unwrap_or_default();
-        let rgb = [base[0], base[1], base[2]].map(|c| c.clamp(0.0, 1.0));
+        let rgb = [base[0], base[1], base[2]];
         let reflectance = extras.reflectance.unwrap_or_else(|| spectrum::rgb_albedo(rgb));
         let alpha = roughness_to_alpha(roughness);
         if metallic > 0.0 && metallic < 1.0 {
@@ -912,7 +919,7 @@ fn check_layout(a: &gltf::Accessor) -> Result<(), String> {
             view.index()
         ));
     }
-    let end = (a.count() - 1).checked_mul(stride).and_then(|n| n.checked_add(a.offset() + size));
+    let end = (a.count() - 1).checked_mul(stride).and_then(|n| n.checked_add(a.offset().checked_add(size)?));
     match end {
         Some(end) if end <= view.length() => Ok(()),
         _ => Err(format!(
