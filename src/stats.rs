@@ -194,23 +194,32 @@ pub fn compare(a: &BlockStats, b: &BlockStats) -> Comparison {
 /// falsely fails with probability at most ALPHA.
 pub fn compare_in_family(a: &BlockStats, b: &BlockStats, family: usize) -> Comparison {
     assert_eq!(a.mean.len(), b.mean.len(), "block grids differ");
-    compare_with(a, family, |i| (b.mean[i], b.stderr[i]))
+    // The t distribution of the side with fewer passes (conservative: see
+    // `normal_score`), so that the comparison is symmetric.
+    compare_with(a, a.k.min(b.k), family, |i| (b.mean[i], b.stderr[i]))
 }
 
 /// Compares block statistics with an exact value per channel (s_b = 0).
 pub fn compare_to_value(a: &BlockStats, value: [f64; 3]) -> Comparison {
-    compare_with(a, 1, |_| (value, [0.0; 3]))
+    compare_with(a, a.k, 1, |_| (value, [0.0; 3]))
 }
 
 /// Compares block statistics with exact values, one per block (row-major),
 /// as one of `family` comparisons made together.
 pub fn compare_to_values(a: &BlockStats, values: &[[f64; 3]], family: usize) -> Comparison {
     assert_eq!(a.mean.len(), values.len(), "one value per block");
-    compare_with(a, family, |i| (values[i], [0.0; 3]))
+    compare_with(a, a.k, family, |i| (values[i], [0.0; 3]))
 }
 
-fn compare_with(a: &BlockStats, family: usize, reference: impl Fn(usize) -> ([f64; 3], [f64; 3])) -> Comparison {
-    let t = StudentsT::new(0.0, 1.0, (a.k - 1) as f64).expect("Student t");
+/// z scores of `a` against `reference`, Student-t with `k` - 1 degrees of
+/// freedom.
+fn compare_with(
+    a: &BlockStats,
+    k: u32,
+    family: usize,
+    reference: impl Fn(usize) -> ([f64; 3], [f64; 3]),
+) -> Comparison {
+    let t = StudentsT::new(0.0, 1.0, (k - 1) as f64).expect("Student t");
     let mut n = 0;
     let mut worst = (0.0f64, (0, 0, 0));
     let mut chi2 = 0.0;
@@ -256,7 +265,8 @@ fn compare_with(a: &BlockStats, family: usize, reference: impl Fn(usize) -> ([f6
 /// quantile 13 times as often against exact values, 4 times between two
 /// estimates); the sum of these scores squared is chi-square(n) when z is
 /// t-distributed. Between two estimates z is closer to normal (Welch: up to
-/// 2K - 2 degrees of freedom), so K - 1 is conservative there.
+/// K_a + K_b - 2 degrees of freedom), so min(K_a, K_b) - 1 is conservative
+/// there.
 fn normal_score(t: &StudentsT, z: f64) -> f64 {
     let tail = t.sf(z.abs());
     if tail >= 0.5 {
@@ -296,6 +306,29 @@ mod tests {
         assert!(!compare(&a, &biased).passed);
         assert!(compare_to_value(&a, [1.0; 3]).passed);
         assert!(!compare_to_value(&a, [1.2; 3]).passed);
+    }
+
+    /// Between estimates of K_a and K_b passes the t distribution has the
+    /// fewer degrees of freedom (min K - 1; Welch's could be larger, so this
+    /// is conservative): the comparison is the same either way round, and
+    /// a difference of 10 standard errors against an estimate from 2 passes
+    /// (1 degree of freedom, Cauchy tails: p = 0.06) is no disagreement.
+    #[test]
+    fn degrees_of_freedom_are_the_fewer_passes() {
+        let one = |k: u32, mean: f64| BlockStats {
+            blocks_x: 1,
+            blocks_y: 1,
+            block: 1,
+            k,
+            mean: vec![[mean; 3]],
+            stderr: vec![[0.1; 3]],
+        };
+        let (many, two) = (one(64, 1.0), one(2, 1.0 + 10.0 * 0.1 * 2f64.sqrt()));
+        let (ab, ba) = (compare(&many, &two), compare(&two, &many));
+        assert_eq!((ab.threshold, ab.passed), (ba.threshold, ba.passed), "{ab} / {ba}");
+        assert!(ab.passed, "{ab}");
+        // Control: with 64 passes on both sides the same z fails.
+        assert!(!compare(&many, &one(64, two.mean[0][0])).passed);
     }
 
     /// The chi-square check holds its significance when z is Student-t: over
