@@ -250,7 +250,9 @@ fn reference_command(a: ReferenceArgs) -> Result<()> {
     check_threads(a.threads)?;
     let mut builder = load_scene(&a.scene)?;
     builder.set_resolution(a.width, a.height);
-    let integrator = integrators::create(&a.integrator, &IntegratorOptions::default()).map_err(anyhow::Error::msg)?;
+    let max_depth = builder.defaults.max_depth.unwrap_or(IntegratorOptions::default().max_depth);
+    let options = IntegratorOptions { max_depth, ..Default::default() };
+    let integrator = integrators::create(&a.integrator, &options).map_err(anyhow::Error::msg)?;
     ensure_exr("--out", &a.out)?;
     check_no_stale_state(&a.out, "")?;
     check_new_outputs(
@@ -264,6 +266,7 @@ fn reference_command(a: ReferenceArgs) -> Result<()> {
         &name,
         integrator.as_ref(),
         &a.integrator,
+        max_depth,
         a.spp,
         a.passes,
         a.seed,

@@ -5,7 +5,7 @@
 //! wall time). Made by `prism reference`; read by tests/agreement.rs.
 
 use crate::film::{read_exr, DroppedSamples, Film, Outputs};
-use crate::integrators::Integrator;
+use crate::integrators::{Integrator, IntegratorOptions};
 use crate::render::RenderOptions;
 use crate::scene::Scene;
 use crate::stats::{pixel_mean_variance, render_pass_films, BlockStats};
@@ -19,6 +19,10 @@ use std::time::Instant;
 pub struct ReferenceMeta {
     pub scene: String,
     pub integrator: String,
+    /// The path depth it rendered with (absent in references made before
+    /// it was recorded, which all used the default).
+    #[serde(default = "default_max_depth")]
+    pub max_depth: u32,
     pub spp: u32,
     pub passes: u32,
     pub seed: u64,
@@ -41,6 +45,10 @@ pub struct ReferenceMeta {
     pub block_stderr: Vec<[f64; 3]>,
 }
 
+fn default_max_depth() -> u32 {
+    IntegratorOptions::default().max_depth
+}
+
 impl ReferenceMeta {
     pub fn block_stats(&self) -> BlockStats {
         BlockStats {
@@ -55,13 +63,14 @@ impl ReferenceMeta {
 }
 
 /// Renders `passes` passes (seeds seed, seed+1, ...) and returns the mean
-/// image with its sidecar.
+/// image with its sidecar (`max_depth`: the integrator's, for the record).
 #[allow(clippy::too_many_arguments)]
 pub fn make_reference(
     scene: &Scene,
     scene_name: &str,
     integrator: &dyn Integrator,
     integrator_name: &str,
+    max_depth: u32,
     spp: u32,
     passes: u32,
     seed: u64,
@@ -81,6 +90,7 @@ pub fn make_reference(
     let meta = ReferenceMeta {
         scene: scene_name.to_string(),
         integrator: integrator_name.to_string(),
+        max_depth,
         spp,
         passes,
         seed,

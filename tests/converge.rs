@@ -369,7 +369,8 @@ fn more_bad_arguments_fail_before_rendering() {
 /// and converge takes them, with their integrator, spp, MIS heuristic and
 /// max depth, and no noise estimate from block errors. One made of the
 /// run's seed from sample 0 shares its sample streams and is flagged; a
-/// merge of later samples of that seed does not, and is not.
+/// merge of later samples of that seed does not unless the run reaches
+/// them (it was not flagged then either), and is flagged only then.
 #[test]
 fn a_rendered_reference_is_accepted() {
     let d = temp_dir("rendered-ref");
@@ -380,12 +381,13 @@ fn a_rendered_reference_is_accepted() {
         assert!(r.status.success(), "{extra:?}: {}", String::from_utf8_lossy(&r.stderr));
     };
     let path = |name: &str| d.join(name).display().to_string();
-    let measure = |reference: &str| {
+    let measure_to = |reference: &str, spp: u32| {
         let mut cfg = config("white-room.json", "path", ReferenceSource::File(d.join(reference)), &d.join("o"), 8);
-        cfg.max_spp = Some(2);
+        cfg.max_spp = Some(spp);
         let r = run(&cfg).unwrap();
         (r, std::fs::read_to_string(d.join("o/report.md")).unwrap())
     };
+    let measure = |reference: &str| measure_to(reference, 2);
     let correlated = |r: &ConvergeResults| r.notes.iter().any(|n| n.contains("correlated"));
     render(&["--integrator", "bdpt", "--mis", "balance", "--spp", "4", "--seed", "99", "--out", &path("ref.exr")]);
     let (r, report) = measure("ref.exr");
@@ -410,6 +412,49 @@ fn a_rendered_reference_is_accepted() {
     let (r, _) = measure("merged.exr");
     assert_eq!((r.reference.spp, r.reference.seed, r.reference.wall_seconds), (Some(4), Some(11), None));
     assert!(!correlated(&r), "later samples of the run's seed flagged: {:?}", r.notes);
+    let (r, _) = measure_to("merged.exr", 5);
+    assert!(correlated(&r), "samples 4..8 of the run's seed, run to 5 spp, not flagged: {:?}", r.notes);
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// A `prism reference` records the depth it rendered with (the scene's
+/// `render.max_depth`, else the default 1024; it recorded none, and used
+/// the default whatever the scene said): a run at another depth is told
+/// that it estimates another image, and does not take the reference's
+/// noise from its own line of the "same" estimator.
+#[test]
+fn a_stored_reference_records_its_depth() {
+    let d = temp_dir("ref-depth");
+    let reference = |scene: &Path, out: &str| {
+        let (scene, out) = (scene.display().to_string(), d.join(out).display().to_string());
+        let args = ["reference", &scene, "--spp", "2", "--passes", "2", "--width", "8", "--height", "8", "--out", &out];
+        let r = prism(&args);
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        let sidecar: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(Path::new(&out).with_extension("json")).unwrap()).unwrap();
+        sidecar["max_depth"].as_u64()
+    };
+    let white_room = scene_path("white-room.json");
+    assert_eq!(reference(&white_room, "ref.exr"), Some(1024));
+    let capped = d.join("capped.json");
+    let text = std::fs::read_to_string(&white_room).unwrap().replace("\"spp\": 64,", "\"spp\": 64, \"max_depth\": 2,");
+    std::fs::write(&capped, text).unwrap();
+    assert_eq!(reference(&capped, "capped-ref.exr"), Some(2));
+
+    let mut cfg = config("white-room.json", "path", ReferenceSource::File(d.join("ref.exr")), &d.join("o"), 8);
+    cfg.max_spp = Some(2);
+    let method = |cfg: &ConvergeConfig| {
+        let r = run(cfg).unwrap();
+        let other_depth = r.notes.iter().any(|n| n.contains("rendered with max depth 1024, this run uses 2"));
+        (r.reference.max_depth, other_depth, r.reference.noise_floor_method.unwrap_or_default())
+    };
+    let (depth, other_depth, floor) = method(&cfg);
+    assert_eq!((depth, other_depth), (Some(1024), false));
+    assert!(floor.starts_with("same estimator"), "{floor}");
+    cfg.max_depth = Some(2);
+    let (depth, other_depth, floor) = method(&cfg);
+    assert_eq!((depth, other_depth), (Some(1024), true));
+    assert_eq!(floor, "block errors");
     std::fs::remove_dir_all(&d).unwrap();
 }
 

@@ -438,7 +438,7 @@ pub struct ReferenceInfo {
     /// was recorded).
     #[serde(default)]
     pub mis: Option<String>,
-    /// Its max depth, where known (`prism reference` does not record it).
+    /// Its max depth, where known (a reference without a sidecar has none).
     #[serde(default)]
     pub max_depth: Option<u32>,
     pub wall_seconds: Option<f64>,
@@ -611,12 +611,12 @@ fn check_config(cfg: &ConvergeConfig) -> Result<()> {
 }
 
 /// `info` with the reference's own noise estimated from the run of the same
-/// estimator (integrator, MIS heuristic and, where known, depth), if any.
+/// estimator (integrator, MIS heuristic and depth), if any.
 fn with_noise_floor(mut info: ReferenceInfo, results: &[IntegratorResult], max_depth: u32) -> ReferenceInfo {
     let same = results.iter().find(|x| {
         Some(&x.integrator) == info.integrator.as_ref()
             && Some(&x.mis) == info.mis.as_ref()
-            && info.max_depth.is_none_or(|d| d == max_depth)
+            && info.max_depth == Some(max_depth)
     });
     if let (Some(x), Some(n_ref)) = (same, info.spp) {
         // m = V/n + V/N at the last checkpoint (independent seeds), so V/N = m / (N/n + 1).

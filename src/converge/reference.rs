@@ -79,11 +79,9 @@ fn render_reference(
     let estimator = integrators::create(integrator, &IntegratorOptions { max_depth, mis: MisHeuristic::Power })
         .map_err(anyhow::Error::msg)?;
     let per_pass = spp.div_ceil(passes);
-    if per_pass * passes != spp {
-        eprintln!(
-            "note: --reference-spp {spp} over {passes} passes: {per_pass} spp per pass, {} in all",
-            per_pass * passes
-        );
+    let total = per_pass as u64 * passes as u64;
+    if total != spp as u64 {
+        eprintln!("note: --reference-spp {spp} over {passes} passes: {per_pass} spp per pass, {total} in all");
     }
     // The largest block (for the sidecar's z-test statistics) that tiles the image.
     let block = [8, 4, 2, 1].into_iter().find(|b| w % b == 0 && h % b == 0).unwrap_or(1);
@@ -94,6 +92,7 @@ fn render_reference(
         scene_name,
         estimator.as_ref(),
         integrator,
+        max_depth,
         per_pass,
         passes,
         ref_seed,
@@ -108,9 +107,7 @@ fn render_reference(
         out.display()
     );
     write_reference(out, &image, &meta)?;
-    // (Rendered with this run's max depth.)
-    let origin = Origin { max_depth: Some(max_depth), ..Origin::of_reference(&meta) };
-    Ok((image, origin))
+    Ok((image, Origin::of_reference(&meta)))
 }
 
 /// Notes on a reference's origin against the run (another scene, an
@@ -156,17 +153,18 @@ fn origin_notes(
             d.negative
         ));
     }
-    if m.max_depth.is_some_and(|d| d != max_depth) {
+    if m.max_depth != max_depth {
         notes.push(format!(
             "the reference was rendered with max depth {}, this run uses {max_depth}: they estimate different images",
-            m.max_depth.unwrap_or_default()
+            m.max_depth
         ));
     }
-    // The run renders samples 0.. of seed `seed` (the sampler is keyed
-    // by seed, pixel and sample index): a reference shares its streams
-    // if it used that seed from sample 0.
+    // The run renders samples 0..spp of seed `seed` (the sampler is keyed
+    // by seed, pixel and sample index; a run to a time may reach any
+    // sample): a reference shares its streams if it used that seed for
+    // one of those samples.
     let seeds = m.seed..m.seed.saturating_add(m.passes.unwrap_or(1) as u64);
-    if seeds.contains(&seed) && m.first_sample == 0 {
+    if seeds.contains(&seed) && m.first_sample < cfg.max_spp.unwrap_or(u32::MAX) {
         notes.push(format!(
             "the reference's passes used seeds {}..{} which include the run's seed {seed}: its samples are \
              correlated with the run's, and the errors measured are too low",
@@ -187,7 +185,7 @@ fn reference_info(path: &Path, here: bool, origin: Option<&Origin>) -> Reference
         passes: origin.and_then(|m| m.passes),
         seed: origin.map(|m| m.seed),
         mis: origin.map(|m| m.mis.clone()),
-        max_depth: origin.and_then(|m| m.max_depth),
+        max_depth: origin.map(|m| m.max_depth),
         wall_seconds: origin.and_then(|m| m.wall_seconds),
         noise_floor,
         noise_floor_method: noise_floor.map(|_| "block errors".to_string()),
@@ -209,9 +207,9 @@ struct Origin {
     passes: Option<u32>,
     /// Its MIS heuristic, as its integrator records it.
     mis: String,
-    /// None for `prism reference`, which does not record it.
-    max_depth: Option<u32>,
-    /// The first sample index it rendered (a part may start later).
+    max_depth: u32,
+    /// The first sample index it rendered (a part or a merge of parts may
+    /// start later): a run of n samples shares one iff this is below n.
     first_sample: u32,
     wall_seconds: Option<f64>,
     noise_floor: Option<f64>,
@@ -250,7 +248,7 @@ impl Origin {
             passes: Some(m.passes),
             // (`make_reference` renders with the default options.)
             mis: crate::integrators::MisHeuristic::default().name().to_string(),
-            max_depth: None,
+            max_depth: m.max_depth,
             first_sample: 0,
             wall_seconds: Some(m.wall_seconds),
             noise_floor: Some(noise_floor(m)),
@@ -268,7 +266,7 @@ impl Origin {
             spp: r.spp * r.passes.unwrap_or(1) as u64,
             passes: r.passes,
             mis: r.mis,
-            max_depth: Some(r.max_depth),
+            max_depth: r.max_depth,
             first_sample: r.sample_ranges.first().map_or(0, |r| r[0]),
             // (A render's sidecar times only its last process, if it was
             // resumed, and a merge's none: the reference's cost is unknown.)
