@@ -74,10 +74,13 @@ fn small_run_writes_every_output_and_the_csv_parses() {
         "16",
         "--out",
         out.to_str().unwrap(),
+        "--save-exr",
         "--quiet",
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     for f in [
+        "path.exr",
+        "bdpt-uniform.exr",
         "results.csv",
         "results.json",
         "error-vs-time.svg",

@@ -71,7 +71,7 @@
 //! | --save-exr               | off            | also write each final image as `DIR/<label>.exr`    |
 
 use crate::camera::Camera;
-use crate::film::{check_no_stale_state, check_outputs, check_writable, ensure_exr, write_exr, DroppedSamples, Film};
+use crate::film::{check_no_stale_state, check_outputs, check_writable, ensure_exr, DroppedSamples, Film};
 use crate::integrators::{self, IntegratorOptions, MisHeuristic, INTEGRATORS};
 use crate::render::{render, RenderOptions};
 use crate::scene::{load_scene, Scene};
@@ -552,9 +552,6 @@ pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
         }
         let (result, image) = converge_one(cfg, &scene, spec, integrator.as_ref(), seed, &reference, warnings)?;
         notes.extend(dropped_note(&result));
-        if cfg.save_exr {
-            write_exr(&cfg.out.join(format!("{}.exr", spec.file_stem())), w, h, &image)?;
-        }
         results.push(result);
         finals.push(image);
     }

@@ -1,6 +1,6 @@
 //! The files a run writes: results.csv, results.json, report.md, the
-//! charts and the image panels, moved into place together (`film::Outputs`):
-//! all of them or none.
+//! charts, the image panels and (`--save-exr`) the final images, moved into
+//! place together (`film::Outputs`): all of them or none.
 
 use super::chart::{chart_svg, svg_to_png, Axis};
 use super::images::{auto_exposure, compose, error_range, false_colour, pixel_errors, tonemap};
@@ -52,6 +52,11 @@ pub(super) fn write_outputs(
         .collect();
     png(&mut out, &dir.join("errors.png"), compose(&panels, Some((lo, hi)))?)?;
     out.bytes(&dir.join("report.md"), report_md(r).as_bytes())?;
+    if cfg.save_exr {
+        for (spec, image) in cfg.integrators.iter().zip(finals) {
+            out.exr(&dir.join(format!("{}.exr", spec.file_stem())), r.width, r.height, image)?;
+        }
+    }
     out.commit()
 }
 
