@@ -22,7 +22,7 @@ const RES: u32 = 64;
 fn integrators(c: &mut Criterion) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.json");
     let mut builder = load_scene(&path).expect("scenes/cornell-box.json");
-    builder.set_resolution(RES, RES);
+    builder.set_resolution(RES, RES).unwrap();
     let scene = builder.build();
     let opts = RenderOptions { seed: 7, threads: 1, progress: false };
     let mut group = c.benchmark_group("cornell-box-64x64-1spp");

@@ -249,7 +249,7 @@ fn reference_command(a: ReferenceArgs) -> Result<()> {
     check_pass_memory(a.passes, a.width, a.height).map_err(|e| anyhow!("--passes: {e}"))?;
     check_threads(a.threads)?;
     let mut builder = load_scene(&a.scene)?;
-    builder.set_resolution(a.width, a.height);
+    builder.set_resolution(a.width, a.height).map_err(|e| anyhow!("--width, --height: {e}"))?;
     let max_depth = builder.defaults.max_depth.unwrap_or(IntegratorOptions::default().max_depth);
     let options = IntegratorOptions { max_depth, ..Default::default() };
     let integrator = integrators::create(&a.integrator, &options).map_err(anyhow::Error::msg)?;
@@ -371,8 +371,7 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
         if w == 0 || h == 0 {
             bail!("--width and --height must be given together and be at least 1");
         }
-        Camera::check_resolution(w, h).map_err(|e| anyhow!("--width, --height: {e}"))?;
-        builder.set_resolution(w, h);
+        builder.set_resolution(w, h).map_err(|e| anyhow!("--width, --height: {e}"))?;
     }
     ensure_exr("--out", &a.out)?;
     if let Some(png) = &a.png {

@@ -70,8 +70,7 @@ pub struct ExportMitsubaArgs {
 pub fn command(a: ExportMitsubaArgs) -> Result<()> {
     let mut builder = load_scene(&a.scene)?;
     if let (Some(w), Some(h)) = (a.width, a.height) {
-        Camera::check_resolution(w, h).map_err(|e| anyhow!("--width, --height: {e}"))?;
-        builder.set_resolution(w, h);
+        builder.set_resolution(w, h).map_err(|e| anyhow!("--width, --height: {e}"))?;
     } else if a.width.is_some() || a.height.is_some() {
         bail!("--width and --height must be given together");
     }

@@ -547,6 +547,16 @@ const CASES: &[Case] = &[
         words: &["--width, --height: 4294967295 x 4294967295", "pixels is more than the 134217728"],
     },
     Case {
+        // A field of view whose image has an area at 8 x 8 (the loader checks
+        // it) but none, in f32, once 16384 times narrower.
+        id: "no-image-area-flag",
+        edits: &[("\"fov\": 40", "\"fov\": 1.2e-16")],
+        args: &["--width", "1", "--height", "16384"],
+        out: "out.exr",
+        position: "",
+        words: &["--width, --height: 1 x 16384: the image has no area at this aspect ratio (the field of view is too small)"],
+    },
+    Case {
         id: "checkpoint-every-too-large",
         edits: &[],
         args: &["--checkpoint-every", "1e30"],

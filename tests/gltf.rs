@@ -74,7 +74,7 @@ fn sample_models_load_and_render_without_dropped_samples() {
         assert!(has(&g.messages, expected), "{name}: no message containing {expected:?} in {:#?}", g.messages);
         // Through the CLI's entry point too (the extension dispatch).
         let mut b = load_scene(&dir().join(name)).unwrap_or_else(|e| panic!("{e}"));
-        b.set_resolution(32, 32);
+        b.set_resolution(32, 32).unwrap();
         let scene = b.build();
         assert!(scene.triangle_count() > 0, "{name}");
         for integrator in ["path", "bdpt"] {
@@ -590,7 +590,7 @@ fn assert_agree_and_control_fails(what: &str, a: &BlockStats, b: &BlockStats) {
 }
 
 fn scene_at_32(mut b: prism::scene::SceneBuilder) -> Scene {
-    b.set_resolution(32, 32);
+    b.set_resolution(32, 32).unwrap();
     b.build()
 }
 

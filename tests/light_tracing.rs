@@ -117,7 +117,7 @@ fn light_tracing_warns_about_what_a_pinhole_cannot_see() {
     // A mirror sphere in front of the camera.
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.json");
     let mut b = prism::scene::load_scene(&path).unwrap();
-    b.set_resolution(32, 32);
+    b.set_resolution(32, 32).unwrap();
     let mirror = b.material("chrome", Bsdf::Mirror(Mirror::new(Spectrum::Constant(0.9))));
     b.mesh("ball", Mesh::sphere(Vec3A::new(278.0, 273.0, 100.0), 80.0, 2, false), mirror, None);
     let w = lt.unsamplable(&b.build());

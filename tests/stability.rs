@@ -543,7 +543,7 @@ fn sds_caustic_is_missing_identically() {
         bulb,
     );
     let mut b = parse_scene(&text, "sds-area", path.parent().unwrap()).unwrap_or_else(|e| panic!("{e}"));
-    b.set_resolution(16, 16);
+    b.set_resolution(16, 16).unwrap();
     let area = b.build();
     assert!(warnings("path", &area).is_empty() && warnings("bdpt", &area).is_empty());
     let hits = first_hits(&area, 4);

@@ -515,7 +515,7 @@ pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
     check_converge_outputs(cfg)?;
     let mut builder = load_scene(&cfg.scene)?;
     if let Some((w, h)) = cfg.resolution {
-        builder.set_resolution(w, h);
+        builder.set_resolution(w, h).map_err(|e| anyhow::anyhow!("--width, --height: {e}"))?;
     }
     let defaults = builder.defaults.clone();
     let seed = cfg.seed.or(defaults.seed).unwrap_or(0);

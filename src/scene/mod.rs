@@ -205,9 +205,18 @@ impl SceneBuilder {
         self
     }
 
-    /// Changes the image resolution (the vertical field of view is kept).
-    pub fn set_resolution(&mut self, width: u32, height: u32) {
-        self.camera = self.camera.with_resolution(width, height);
+    /// Changes the image resolution (the vertical field of view is kept),
+    /// unless the film would not fit or the image would have no area (a
+    /// tiny field of view squeezed by the aspect ratio).
+    pub fn set_resolution(&mut self, width: u32, height: u32) -> Result<(), String> {
+        Camera::check_resolution(width, height)?;
+        let camera = self.camera.with_resolution(width, height);
+        if !camera.has_image_area() {
+            let why = "the image has no area at this aspect ratio (the field of view is too small)";
+            return Err(format!("{width} x {height}: {why}"));
+        }
+        self.camera = camera;
+        Ok(())
     }
 
     pub fn point_light(&mut self, name: &str, p: Vec3A, intensity: Spectrum) -> &mut Self {

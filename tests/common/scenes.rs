@@ -22,7 +22,7 @@ pub fn temp_dir(name: &str) -> PathBuf {
 pub fn scene(name: &str, width: u32, height: u32) -> Scene {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(name);
     let mut b = load_scene(&path).unwrap_or_else(|e| panic!("{e}"));
-    b.set_resolution(width, height);
+    b.set_resolution(width, height).unwrap();
     b.build()
 }
 
@@ -34,7 +34,7 @@ pub fn scene_variant(name: &str, width: u32, height: u32, from: &str, to: &str) 
     assert!(text.contains(from), "{name} does not contain {from:?}");
     let text = text.replace(from, to);
     let mut b = parse_scene(&text, name, path.parent().unwrap()).unwrap_or_else(|e| panic!("{e}"));
-    b.set_resolution(width, height);
+    b.set_resolution(width, height).unwrap();
     b.build()
 }
 
