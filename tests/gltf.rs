@@ -358,6 +358,23 @@ fn a_node_reached_twice_is_an_error() {
     assert!(parse(&two, "two scenes").is_ok());
 }
 
+/// An error in a `.gltf` file names the line and column of the element at
+/// fault, as the JSON scene loader does (a `.glb` frames its JSON in binary
+/// chunks: no line). The text is laid out by hand: `nodes[0]` is the `{}`
+/// at line 5, column 5, and the required extension at line 3, column 26.
+#[test]
+fn gltf_errors_name_the_line() {
+    let text = "{\n  \"asset\": {\"version\": \"2.0\"},\n  \"scenes\": [{\"nodes\": [0, 0]}],\n  \"nodes\": [\n    {}\n  ]\n}\n";
+    let e = parse_gltf(text.as_bytes(), "x.gltf", &dir()).err().unwrap().to_string();
+    assert!(e.starts_with("x.gltf:5:5: nodes[0]: the node is reached twice"), "{e}");
+    let text = text.replace("\"scenes\": [{\"nodes\": [0, 0]}],", "\"extensionsRequired\": [\"EXT_x\"],");
+    let e = parse_gltf(text.as_bytes(), "x.gltf", &dir()).err().unwrap().to_string();
+    assert!(e.starts_with("x.gltf:3:26: extensionsRequired[0]: the file requires extension EXT_x"), "{e}");
+    // A field the file lacks: the deepest part of its path that it has.
+    let e = parse_gltf(b"{\"asset\": {\"version\": \"2.0\"}}", "y.gltf", &dir()).err().unwrap().to_string();
+    assert!(e.starts_with("y.gltf:1:1: scenes: the file has no scene"), "{e}");
+}
+
 #[test]
 fn json_scene_includes_gltf_with_material_overrides() {
     let scene_text = |materials: &str, material: &str| {

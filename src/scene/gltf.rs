@@ -31,6 +31,7 @@
 //! scaled by emissiveFactor or strength). scenes/gltf/cornell-box.gltf uses
 //! them; any other glTF reader ignores them and sees the RGB values.
 
+use super::locate::{locate, Seg};
 use super::{LoadError, SceneBuilder};
 use crate::camera::Camera;
 use crate::materials::{roughness_to_alpha, Bsdf, Conductor, Dielectric, Diffuse};
@@ -206,6 +207,8 @@ struct MappedMaterial {
 
 struct Importer {
     file: String,
+    /// The file's JSON text, if it is a `.gltf` (`json_text`).
+    text: Option<String>,
     /// Shared so that walking it while the importer changes is cheap.
     doc: Rc<gltf::Document>,
     buffers: Vec<Vec<u8>>,
@@ -221,14 +224,41 @@ struct Importer {
     own_camera: bool,
 }
 
+/// The text of a `.gltf` file, where its errors are located (a `.glb`
+/// frames its JSON in binary chunks: its errors have no line).
+fn json_text(bytes: &[u8]) -> Option<String> {
+    (!bytes.starts_with(b"glTF")).then(|| std::str::from_utf8(bytes).ok().map(str::to_string)).flatten()
+}
+
+/// An error at `field`, a label such as `meshes[0].primitives[1]` or
+/// `nodes[2] "name"`: its path (up to the first space, when that holds an
+/// index or is the whole label) is located in `text`.
+fn load_error(file: &str, text: Option<&str>, field: &str, message: String) -> LoadError {
+    let head = field.split(' ').next().unwrap_or_default();
+    let path = (head.contains('[') || head == field).then(|| label_path(head)).flatten();
+    let position = text.zip(path).map(|(t, p)| locate(t, &p));
+    LoadError { file: file.to_string(), position, field: field.to_string(), message }
+}
+
+/// `a.b[1][2]` as a JSON path; None if it is not one.
+fn label_path(label: &str) -> Option<Vec<Seg>> {
+    let mut path = Vec::new();
+    for part in label.split('.') {
+        let mut pieces = part.split('[');
+        let key =
+            pieces.next().filter(|k| !k.is_empty() && k.chars().all(|c| c.is_ascii_alphanumeric() || c == '_'))?;
+        path.push(Seg::Key(key.to_string()));
+        for index in pieces {
+            path.push(Seg::Index(index.strip_suffix(']')?.parse().ok()?));
+        }
+    }
+    Some(path)
+}
+
 impl Importer {
     fn open(bytes: &[u8], file: &str, dir: &Path) -> Result<Self, LoadError> {
-        let fail = |field: &str, message: String| LoadError {
-            file: file.to_string(),
-            position: None,
-            field: field.to_string(),
-            message,
-        };
+        let text = json_text(bytes);
+        let fail = |field: &str, message: String| load_error(file, text.as_deref(), field, message);
         let gltf::Gltf { document, blob } =
             gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| fail("", format!("not a valid glTF: {e}")))?;
         let json = document.into_json();
@@ -262,6 +292,7 @@ impl Importer {
         let doc = gltf::Document::from_json(json).map_err(|e| fail("", format!("invalid glTF: {e}")))?;
         let mut imp = Importer {
             file: file.to_string(),
+            text,
             doc: Rc::new(doc),
             buffers: Vec::new(),
             dir: dir.to_path_buf(),
@@ -283,12 +314,12 @@ impl Importer {
             let what = format!("buffers[{}]", buffer.index());
             let mut data = match buffer.source() {
                 gltf::buffer::Source::Bin => {
-                    blob.take().ok_or_else(|| fail(&what, "the GLB has no binary chunk".into()))?
+                    blob.take().ok_or_else(|| imp.fail(&what, "the GLB has no binary chunk"))?
                 }
-                gltf::buffer::Source::Uri(uri) => imp.read_uri(uri).map_err(|m| fail(&what, m))?,
+                gltf::buffer::Source::Uri(uri) => imp.read_uri(uri).map_err(|m| imp.fail(&what, m))?,
             };
             if data.len() < buffer.length() {
-                return Err(fail(&what, format!("holds {} bytes, byteLength says {}", data.len(), buffer.length())));
+                return Err(imp.fail(&what, format!("holds {} bytes, byteLength says {}", data.len(), buffer.length())));
             }
             data.truncate(buffer.length());
             buffers.push(data);
@@ -296,7 +327,7 @@ impl Importer {
         imp.buffers = buffers;
         for view in imp.doc.views() {
             if view.offset().checked_add(view.length()).is_none_or(|end| end > view.buffer().length()) {
-                return Err(fail(&format!("bufferViews[{}]", view.index()), "lies outside its buffer".into()));
+                return Err(imp.fail(&format!("bufferViews[{}]", view.index()), "lies outside its buffer"));
             }
         }
         Ok(imp)
@@ -329,7 +360,7 @@ impl Importer {
     }
 
     fn fail(&self, what: &str, message: impl Into<String>) -> LoadError {
-        LoadError { file: self.file.clone(), position: None, field: what.to_string(), message: message.into() }
+        load_error(&self.file, self.text.as_deref(), what, message.into())
     }
 
     /// Walks the default scene (else the first) under `root`, depth first in
