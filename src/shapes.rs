@@ -46,6 +46,11 @@ impl Mesh {
         Mesh { positions, normals: Vec::new(), indices }
     }
 
+    /// Triangles of `sphere` with `subdivisions` (at most 30): 20 * 4^s.
+    pub fn sphere_triangles(subdivisions: u32) -> usize {
+        20 << (2 * subdivisions)
+    }
+
     /// Icosphere: an icosahedron whose faces are split in four `subdivisions`
     /// times (20 * 4^s triangles), vertices projected onto the sphere. Wound
     /// outward; `smooth` adds the exact sphere normals per vertex.
@@ -228,6 +233,7 @@ mod tests {
         for s in 0..6 {
             let m = Mesh::sphere(c, r, s, true);
             assert_eq!(m.len(), 20 * 4usize.pow(s));
+            assert_eq!(Mesh::sphere_triangles(s), m.len());
             // Closed: V - E + F = 2 with E = 3F/2.
             assert_eq!(m.positions.len() + m.len() - 3 * m.len() / 2, 2);
             assert_outward(&m, c);

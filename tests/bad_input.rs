@@ -33,6 +33,19 @@ struct Case {
     words: &'static [&'static str],
 }
 
+/// A sphere of 9 subdivisions (5,242,880 triangles) as a scene object.
+macro_rules! sphere9 {
+    () => {
+        "{\"shape\": {\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1, \"subdivisions\": 9}, \"material\": \"white\"}, "
+    };
+}
+
+macro_rules! five_spheres {
+    () => {
+        concat!(sphere9!(), sphere9!(), sphere9!(), sphere9!(), sphere9!())
+    };
+}
+
 const CASES: &[Case] = &[
     Case {
         id: "truncated",
@@ -555,6 +568,15 @@ const CASES: &[Case] = &[
         out: "out.exr",
         position: "",
         words: &["--width, --height: 1 x 16384: the image has no area at this aspect ratio (the field of view is too small)"],
+    },
+    Case {
+        // 26 spheres of 5,242,880 triangles: the 26th crosses 2^27.
+        id: "too-many-triangles",
+        edits: &[("\"objects\": [", concat!("\"objects\": [", five_spheres!(), five_spheres!(), five_spheres!(), five_spheres!(), five_spheres!(), sphere9!()))],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:4:",
+        words: &["objects[25].shape: the scene would hold 136314880 triangles, more than the 134217728 (2^27) prism builds"],
     },
     Case {
         id: "checkpoint-every-too-large",

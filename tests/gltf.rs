@@ -375,6 +375,33 @@ fn gltf_errors_name_the_line() {
     assert!(e.starts_with("y.gltf:1:1: scenes: the file has no scene"), "{e}");
 }
 
+/// A glTF file may instance one mesh from many nodes: 135 nodes of a
+/// million-triangle mesh (3 MB of one-byte indices) declare 135 million
+/// triangles, more than `MAX_TRIANGLES` (2^27 = 134,217,728). The loader
+/// counts them from the accessors before reading any, and names the node
+/// that crosses the limit (it would have filled the memory first).
+#[test]
+fn instanced_meshes_beyond_the_triangle_limit_are_an_error() {
+    let n = 3_000_000;
+    let v = json!({
+        "asset": {"version": "2.0"},
+        "buffers": [{"uri": format!("data:application/octet-stream;base64,{}", "AAAA".repeat((n + 12) / 3)), "byteLength": n + 12}],
+        "bufferViews": [{"buffer": 0, "byteLength": n}, {"buffer": 0, "byteOffset": n, "byteLength": 12}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5121, "count": n, "type": "SCALAR"},
+            {"bufferView": 1, "componentType": 5126, "count": 1, "type": "VEC3", "min": [0, 0, 0], "max": [0, 0, 0]}
+        ],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 1}, "indices": 0}]}],
+        "nodes": vec![json!({"mesh": 0}); 135],
+        "scenes": [{"nodes": (0..135).collect::<Vec<_>>()}]
+    });
+    let e = parse(&v, "instanced").err().unwrap();
+    assert!(
+        e.contains("nodes[134]: the scene would hold 135000000 triangles, more than the 134217728 (2^27) prism builds"),
+        "{e}"
+    );
+}
+
 #[test]
 fn json_scene_includes_gltf_with_material_overrides() {
     let scene_text = |materials: &str, material: &str| {

@@ -32,7 +32,7 @@
 //! them; any other glTF reader ignores them and sees the RGB values.
 
 use super::locate::{locate, Seg};
-use super::{LoadError, SceneBuilder};
+use super::{check_triangle_count, LoadError, SceneBuilder};
 use crate::camera::Camera;
 use crate::materials::{roughness_to_alpha, Bsdf, Conductor, Dielectric, Diffuse};
 use crate::shapes::Mesh;
@@ -87,7 +87,7 @@ pub fn load_gltf(path: &Path) -> Result<GltfScene, LoadError> {
 /// in messages and `dir` resolves external buffers and images.
 pub fn parse_gltf(bytes: &[u8], file: &str, dir: &Path) -> Result<GltfScene, LoadError> {
     let mut imp = Importer::open(bytes, file, dir)?;
-    let content = imp.import(Affine3A::IDENTITY)?;
+    let content = imp.import(Affine3A::IDENTITY, 0)?;
     let camera = match &content.camera {
         Some(c) => c.clone(),
         None => {
@@ -160,7 +160,7 @@ pub(super) fn include(
         });
     }
     imp.own_camera = false;
-    let content = imp.import(transform).map_err(err)?;
+    let content = imp.import(transform, b.triangle_count()).map_err(err)?;
     if content.camera.is_some() {
         imp.note("cameras", "not used: the including JSON scene's camera renders");
     }
@@ -364,36 +364,16 @@ impl Importer {
     }
 
     /// Walks the default scene (else the first) under `root`, depth first in
-    /// node order.
-    fn import(&mut self, root: Affine3A) -> Result<Content, LoadError> {
-        let scene_count = self.doc.scenes().count();
-        let scene = self.doc.default_scene().or_else(|| self.doc.scenes().next()).map(|s| s.index());
-        let Some(scene) = scene else {
-            return Err(self.fail("scenes", "the file has no scene to render"));
-        };
-        if scene_count > 1 {
-            self.note("scenes", format!("renders scene {scene} of {scene_count}"));
-        }
-        let roots: Vec<usize> = self.doc.scenes().nth(scene).expect("scene index").nodes().map(|n| n.index()).collect();
+    /// node order; `used` triangles are already in the scene it joins.
+    fn import(&mut self, root: Affine3A, used: usize) -> Result<Content, LoadError> {
+        let nodes = self.walk(root)?;
+        let doc = Rc::clone(&self.doc);
+        self.check_triangles(&nodes, used)?;
         let mut content = Content { meshes: Vec::new(), lights: Vec::new(), camera: None };
         let mut cameras = 0;
-        let doc = Rc::clone(&self.doc);
-        // glTF 2.0, 3.5.3: the nodes form disjoint trees, so a walk meets
-        // each node once (a node met again would be a cycle, or a walk that
-        // grows as 2^depth).
-        let mut reached = vec![false; doc.nodes().len()];
-        let mut stack: Vec<(usize, Affine3A)> = roots.into_iter().rev().map(|n| (n, root)).collect();
-        while let Some((index, parent)) = stack.pop() {
+        for (index, world) in nodes {
             let node = doc.nodes().nth(index).expect("validated node index");
             let label = label("nodes", index, node.name());
-            if std::mem::replace(&mut reached[index], true) {
-                return Err(self.fail(&label, "the node is reached twice: glTF nodes form disjoint trees"));
-            }
-            let local = Affine3A::from_mat4(Mat4::from_cols_array_2d(&node.transform().matrix()));
-            let world = parent * local;
-            if !world.is_finite() {
-                return Err(self.fail(&label, "the node transform is not finite"));
-            }
             if let Some(mesh) = node.mesh() {
                 self.import_mesh(&node, &mesh, world, &label, &mut content)?;
             }
@@ -418,12 +398,61 @@ impl Importer {
             if let Some(light) = node.light() {
                 self.import_light(&light, world, &label, &mut content)?;
             }
-            stack.extend(node.children().map(|c| (c.index(), world)).collect::<Vec<_>>().into_iter().rev());
         }
         if cameras > 1 && content.camera.is_some() && self.own_camera {
             self.note("cameras", format!("{} other camera node(s) not used", cameras - 1));
         }
         Ok(content)
+    }
+
+    /// The nodes of the default scene (else the first), depth first in node
+    /// order, with their world transforms under `root`.
+    fn walk(&mut self, root: Affine3A) -> Result<Vec<(usize, Affine3A)>, LoadError> {
+        let scene_count = self.doc.scenes().count();
+        let scene = self.doc.default_scene().or_else(|| self.doc.scenes().next()).map(|s| s.index());
+        let Some(scene) = scene else {
+            return Err(self.fail("scenes", "the file has no scene to render"));
+        };
+        if scene_count > 1 {
+            self.note("scenes", format!("renders scene {scene} of {scene_count}"));
+        }
+        let doc = Rc::clone(&self.doc);
+        let roots = doc.scenes().nth(scene).expect("scene index").nodes();
+        // glTF 2.0, 3.5.3: the nodes form disjoint trees, so a walk meets
+        // each node once (a node met again would be a cycle, or a walk that
+        // grows as 2^depth).
+        let mut reached = vec![false; doc.nodes().len()];
+        let mut nodes = Vec::new();
+        let mut stack: Vec<(gltf::Node, Affine3A)> = roots.map(|n| (n, root)).collect();
+        stack.reverse();
+        while let Some((node, parent)) = stack.pop() {
+            let label = label("nodes", node.index(), node.name());
+            if std::mem::replace(&mut reached[node.index()], true) {
+                return Err(self.fail(&label, "the node is reached twice: glTF nodes form disjoint trees"));
+            }
+            let local = Affine3A::from_mat4(Mat4::from_cols_array_2d(&node.transform().matrix()));
+            let world = parent * local;
+            if !world.is_finite() {
+                return Err(self.fail(&label, "the node transform is not finite"));
+            }
+            nodes.push((node.index(), world));
+            stack.extend(node.children().map(|c| (c, world)).collect::<Vec<_>>().into_iter().rev());
+        }
+        Ok(nodes)
+    }
+
+    /// The triangles the nodes' meshes declare (by their accessors' counts,
+    /// before any is read), with `used` more, within `MAX_TRIANGLES`: a
+    /// small file may instance one large mesh many times.
+    fn check_triangles(&self, nodes: &[(usize, Affine3A)], used: usize) -> Result<(), LoadError> {
+        let mut total = used;
+        for &(index, _) in nodes {
+            let node = self.doc.nodes().nth(index).expect("validated node index");
+            let Some(mesh) = node.mesh() else { continue };
+            total = mesh.primitives().map(|p| declared_triangles(&p)).fold(total, usize::saturating_add);
+            check_triangle_count(total).map_err(|e| self.fail(&label("nodes", index, node.name()), e))?;
+        }
+        Ok(())
     }
 
     fn camera(&mut self, label: &str, world: Affine3A, yfov: f32, aspect: Option<f32>) -> Result<Camera, LoadError> {
@@ -960,6 +989,17 @@ fn check_layout(a: &gltf::Accessor) -> Result<(), String> {
             view.index(),
             view.length()
         )),
+    }
+}
+
+/// The triangles a primitive's vertex count makes (glTF 2.0 spec 3.7.2.1),
+/// before its data is read.
+fn declared_triangles(prim: &gltf::Primitive) -> usize {
+    let count = prim.indices().or_else(|| prim.get(&gltf::Semantic::Positions)).map_or(0, |a| a.count());
+    match prim.mode() {
+        Mode::Triangles => count / 3,
+        Mode::TriangleStrip | Mode::TriangleFan => count.saturating_sub(2),
+        _ => 0,
     }
 }
 

@@ -8,7 +8,7 @@
 
 use super::locate::{locate, path_string, Seg};
 use super::tagged::tagged_enum;
-use super::{RenderDefaults, SceneBuilder};
+use super::{check_triangle_count, RenderDefaults, SceneBuilder};
 use crate::camera::Camera;
 use crate::materials::{roughness_to_alpha, Bsdf, Conductor, Dielectric, Diffuse, Mirror};
 use crate::shapes::Mesh;
@@ -330,6 +330,17 @@ enum ShapeSpec {
     Gltf(GltfSpec),
 }
 
+impl ShapeSpec {
+    /// Triangles a sphere will have (the shape a line of text can make
+    /// millions of), 0 for the others, which count as they are made.
+    fn declared_triangles(&self) -> usize {
+        match self {
+            ShapeSpec::Sphere(s) if s.subdivisions <= MAX_SUBDIVISIONS => Mesh::sphere_triangles(s.subdivisions),
+            _ => 0,
+        }
+    }
+}
+
 tagged_enum!(ShapeSpec, "a shape", {
     "quad" => Quad(QuadSpec),
     "cuboid" => Cuboid(CuboidSpec),
@@ -379,6 +390,9 @@ struct SphereSpec {
     #[serde(default)]
     inward: bool,
 }
+
+/// A sphere of 9 subdivisions has 5,242,880 triangles.
+const MAX_SUBDIVISIONS: u32 = 9;
 
 fn default_subdivisions() -> u32 {
     4
@@ -908,7 +922,7 @@ impl<'a> Ctx<'a> {
                 if !(s.radius.is_finite() && s.radius > 0.0) {
                     return Err(self.err(&at("radius"), "radius must be a finite number > 0"));
                 }
-                if s.subdivisions > 9 {
+                if s.subdivisions > MAX_SUBDIVISIONS {
                     return Err(self.err(&at("subdivisions"), "at most 9 subdivisions (5 million triangles)"));
                 }
                 let mut m = Mesh::sphere(c, s.radius, s.subdivisions, s.smooth);
@@ -1163,6 +1177,14 @@ fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
         material_ids.insert(name.clone(), b.material(name, bsdf));
     }
 
+    // Spheres first, by the triangles they declare: a line each, they
+    // could otherwise fill the memory before the count is over.
+    let mut declared = 0usize;
+    for (i, o) in f.objects.iter().enumerate() {
+        declared = declared.saturating_add(o.shape.declared_triangles());
+        let path = with(&with_index(&[Seg::Key("objects".into())], i), "shape");
+        check_triangle_count(declared).map_err(|e| ctx.err(&path, e))?;
+    }
     for (i, o) in f.objects.iter().enumerate() {
         let path = with_index(&[Seg::Key("objects".into())], i);
         let name = o.name.clone().unwrap_or_else(|| format!("object {i}"));
@@ -1183,6 +1205,7 @@ fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
             return Err(ctx.err(&at, "vertex positions overflow the f32 range"));
         }
         mesh.check_f32_extent().map_err(|e| ctx.err(&at, e))?;
+        check_triangle_count(b.triangle_count() + mesh.len()).map_err(|e| ctx.err(&with(&path, "shape"), e))?;
         let emission = match &o.emission {
             Some(e) => Some((ctx.spectrum(&with(&path, "emission"), e, Use::Emission)?, o.two_sided)),
             None => None,

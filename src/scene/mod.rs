@@ -168,6 +168,20 @@ pub struct Scene {
     pub defaults: RenderDefaults,
 }
 
+/// The most triangles a scene may hold: 2^27, about 12 GiB at the ~92 bytes
+/// a built scene takes per triangle (docs/performance.md), so that a scene
+/// of a few lines (many subdivided spheres, a glTF mesh instanced many
+/// times) gets an error, not an allocation failure.
+pub const MAX_TRIANGLES: usize = 1 << 27;
+
+/// Whether a scene of `n` triangles is within `MAX_TRIANGLES`.
+pub fn check_triangle_count(n: usize) -> Result<(), String> {
+    match n > MAX_TRIANGLES {
+        true => Err(format!("the scene would hold {n} triangles, more than the {MAX_TRIANGLES} (2^27) prism builds")),
+        false => Ok(()),
+    }
+}
+
 /// A mesh with its material, its emission (radiance, two-sided) if any, and
 /// its name.
 type MeshEntry = (Mesh, u32, Option<(Spectrum, bool)>, String);
@@ -178,6 +192,8 @@ pub struct SceneBuilder {
     camera: Camera,
     materials: Vec<Material>,
     meshes: Vec<MeshEntry>,
+    /// Triangles in `meshes`.
+    triangles: usize,
     lights: Vec<(Light, String)>,
     pub defaults: RenderDefaults,
 }
@@ -188,6 +204,7 @@ impl SceneBuilder {
             camera,
             materials: Vec::new(),
             meshes: Vec::new(),
+            triangles: 0,
             lights: Vec::new(),
             defaults: RenderDefaults::default(),
         }
@@ -201,8 +218,14 @@ impl SceneBuilder {
 
     /// Adds a mesh with a material and optional emission (radiance, two-sided).
     pub fn mesh(&mut self, name: &str, mesh: Mesh, material: u32, emission: Option<(Spectrum, bool)>) -> &mut Self {
+        self.triangles += mesh.len();
         self.meshes.push((mesh, material, emission, name.to_string()));
         self
+    }
+
+    /// Triangles added so far.
+    pub fn triangle_count(&self) -> usize {
+        self.triangles
     }
 
     /// Changes the image resolution (the vertical field of view is kept),
