@@ -143,7 +143,8 @@ fn remove_stale_meshes(mesh_dir: &Path, count: usize) -> Result<()> {
     for entry in listing {
         let path = entry.with_context(|| format!("cannot list {}", mesh_dir.display()))?.path();
         let name = path.file_name().and_then(|n| n.to_str()).unwrap_or_default();
-        let index = name.strip_suffix(".ply").filter(|k| k.len() == 3).and_then(|k| k.parse::<usize>().ok());
+        let stem = name.strip_suffix(".ply").unwrap_or_default();
+        let index = stem.parse::<usize>().ok().filter(|k| format!("{k:03}") == stem);
         if index.is_some_and(|k| k >= count) {
             std::fs::remove_file(&path).with_context(|| format!("cannot remove {}", path.display()))?;
         }
@@ -185,17 +186,36 @@ fn group_triangles(scene: &Scene) -> Vec<Group> {
             }
         };
         groups[k].positions.extend(v);
-        groups[k].normals.extend(ns.into_iter().flatten());
+        let ng = (v[1] - v[0]).cross(v[2] - v[0]).normalize();
+        groups[k].normals.extend(ns.into_iter().flatten().map(|n| winding_side(n, ng)));
     }
     groups
+}
+
+/// A vertex normal as prism shades with it: turned to the winding side
+/// `ng` (Mitsuba's area emitter emits on its shading normal's side, prism's
+/// on the winding side), and `ng` itself where it is zero. (Prism turns the
+/// interpolated normal; for a triangle whose vertex normals lie on both
+/// sides the two differ inside it.)
+fn winding_side(n: Vec3A, ng: Vec3A) -> Vec3A {
+    let n = n.normalize_or_zero();
+    if n == Vec3A::ZERO {
+        ng
+    } else if n.dot(ng) < 0.0 {
+        -n
+    } else {
+        n
+    }
 }
 
 /// The pinhole as a `perspective` sensor (vertical fov, look-at) with an
 /// RGB float `hdrfilm` and a box filter.
 fn sensor_xml(xml: &mut String, cam: &Camera, spp: u32) {
     let (forward, up, fov_y) = cam.orientation();
-    let p = cam.position;
-    let t = p + forward;
+    // The target as far along the view as the camera is from the origin
+    // (in f64): one unit ahead of a camera at 1e8 is the camera in f32.
+    let p = cam.position.as_dvec3();
+    let t = p + forward.as_dvec3() * p.length().max(1.0);
     let _ = writeln!(xml, "  <default name=\"spp\" value=\"{spp}\"/>");
     let _ = writeln!(xml, "  <default name=\"width\" value=\"{}\"/>", cam.width);
     let _ = writeln!(xml, "  <default name=\"height\" value=\"{}\"/>", cam.height);
@@ -253,8 +273,16 @@ pub fn spectrum_list(s: &Spectrum) -> String {
     lambdas.iter().map(|&l| format!("{l}:{}", s.eval(l as f32))).collect::<Vec<_>>().join(", ")
 }
 
+/// A name as the text of an XML comment: no control characters (XML 1.0
+/// allows none but tab and newlines, which a one-line comment does not
+/// want) and no `--`.
 fn xml_escape(s: &str) -> String {
-    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace("--", "- -")
+    let mut s: String = s.chars().filter(|c| !c.is_control()).collect();
+    s = s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;");
+    while s.contains("--") {
+        s = s.replace("--", "- -");
+    }
+    s
 }
 
 /// A binary little-endian PLY triangle soup: vertices 3i, 3i+1, 3i+2 make
@@ -313,6 +341,49 @@ mod tests {
         assert!(xml.contains("fov_axis\" value=\"y\""));
         let ply = std::fs::read(dir.join("meshes/000.ply")).unwrap();
         assert!(ply.starts_with(b"ply\nformat binary_little_endian 1.0\n"));
+        let _ = std::fs::remove_dir_all(dir);
+    }
+
+    /// From an audit: a camera far from the origin keeps its view (the
+    /// target, one unit ahead of a camera at z = -1e8, was the camera in
+    /// f32: no direction), vertex normals are turned to the winding side,
+    /// where prism emits (a zero one is the face normal; Mitsuba emits on
+    /// the normal's side), and a name becomes a well-formed XML comment
+    /// (`a---b` made `a- --b`).
+    #[test]
+    fn far_cameras_turned_normals_and_odd_names_export_as_prism_sees_them() {
+        use crate::camera::Camera;
+        use crate::materials::Diffuse;
+        use crate::scene::SceneBuilder;
+        use crate::shapes::Mesh;
+        let camera = Camera::new(Vec3A::new(278.0, 273.0, -1e8), Vec3A::new(278.0, 273.0, 0.0), Vec3A::Y, 40.0, 8, 8);
+        let mut b = SceneBuilder::new(camera);
+        let m = b.material("a---b\u{1}", Bsdf::Diffuse(Diffuse::new(Spectrum::Constant(0.5))));
+        // Wound towards -z (the camera): (0, 1, 0) x (1, 0, 0) = -z.
+        let positions = vec![Vec3A::ZERO, Vec3A::Y, Vec3A::X];
+        let triangle = Mesh { positions, normals: vec![Vec3A::Z, Vec3A::Z, Vec3A::ZERO], indices: vec![[0, 1, 2]] };
+        b.mesh("lamp", triangle, m, Some((Spectrum::Constant(1.0), false)));
+        let dir = std::env::temp_dir().join(format!("prism-mitsuba-far-{}", std::process::id()));
+        assert_eq!(export(&b.build(), &dir, 1).unwrap(), 1);
+        let xml = std::fs::read_to_string(dir.join("scene.xml")).unwrap();
+        let point = |name: &str| {
+            let from = xml.find(&format!("{name}=\"")).unwrap() + name.len() + 2;
+            let text = &xml[from..from + xml[from..].find('"').unwrap()];
+            let v: Vec<f64> = text.split(", ").map(|x| x.parse().unwrap()).collect();
+            glam::DVec3::new(v[0], v[1], v[2])
+        };
+        let view = (point("target") - point("origin")).normalize();
+        assert!((view - glam::DVec3::Z).length() < 1e-6, "view {view}");
+        let comment = &xml[xml.find("<!-- material ").unwrap() + 5..];
+        let comment = &comment[..comment.find("-->").unwrap()];
+        assert!(!comment.contains("--") && !comment.contains('\u{1}'), "{comment:?}");
+        let ply = std::fs::read(dir.join("meshes/000.ply")).unwrap();
+        let body = ply.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
+        let float = |i: usize| f32::from_le_bytes(ply[body + 4 * i..body + 4 * i + 4].try_into().unwrap());
+        for vertex in 0..3 {
+            let n = Vec3A::new(float(6 * vertex + 3), float(6 * vertex + 4), float(6 * vertex + 5));
+            assert_eq!(n, -Vec3A::Z, "vertex {vertex}");
+        }
         let _ = std::fs::remove_dir_all(dir);
     }
 

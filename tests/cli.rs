@@ -318,6 +318,7 @@ fn grown_parts_and_ignored_options_merge() {
 
 /// An export over an earlier one leaves exactly the meshes its scene.xml
 /// names: an earlier export's higher-numbered `meshes/NNN.ply` are removed
+/// (also past 999, which has four digits)
 /// (Mitsuba would not read them, but a reader of the directory would), and
 /// files the exporter does not name that way are kept.
 #[test]
@@ -329,7 +330,7 @@ fn export_mitsuba_leaves_exactly_its_meshes() {
     let xml = std::fs::read_to_string(dir.join("scene.xml")).unwrap();
     let named = xml.matches("meshes/").count();
     assert!(named > 1, "{xml}");
-    for stray in ["999.ply", "notes.txt", "0001.ply"] {
+    for stray in ["999.ply", "1000.ply", "notes.txt", "0001.ply"] {
         std::fs::write(dir.join("meshes").join(stray), b"not ours").unwrap();
     }
     let o = prism(&["export-mitsuba", "scenes/cornell-box.json", &dir.display().to_string()]);
