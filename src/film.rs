@@ -29,14 +29,16 @@ pub struct DroppedSamples {
 }
 
 impl DroppedSamples {
+    /// (Counts saturate at u64::MAX rather than wrap, whatever parts a
+    /// merge is given.)
     pub fn total(&self) -> u64 {
-        self.nan + self.infinite + self.negative
+        self.nan.saturating_add(self.infinite).saturating_add(self.negative)
     }
 
     pub fn merge(&mut self, o: &DroppedSamples) {
-        self.nan += o.nan;
-        self.infinite += o.infinite;
-        self.negative += o.negative;
+        self.nan = self.nan.saturating_add(o.nan);
+        self.infinite = self.infinite.saturating_add(o.infinite);
+        self.negative = self.negative.saturating_add(o.negative);
     }
 
     /// Converts a spectral sample to linear sRGB with its path's matching

@@ -380,6 +380,14 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
     if !writes_state(a) {
         check_no_stale_state(&a.out, ", or render the part with --sample-range A..B")?;
     }
+    let checkpoint = a.out.with_extension("ckpt");
+    if a.checkpoint_every.is_some() && checkpoint.exists() && a.resume.as_ref() != Some(&checkpoint) {
+        bail!(
+            "{} holds the samples of an interrupted render, which this one would replace: continue it with \
+             --resume {0}, or remove it",
+            checkpoint.display()
+        );
+    }
     let outputs = render_outputs(a);
     let outputs: Vec<(&str, &Path)> = outputs.iter().map(|(r, p)| (*r, p.as_path())).collect();
     check_new_outputs(&[("the scene", &a.scene)], &outputs)?;

@@ -28,6 +28,10 @@ use std::path::Path;
 const MAGIC: &[u8; 8] = b"PRISMST\0";
 const VERSION: u32 = 1;
 
+/// The largest state file: the fixed fields, a header of up to 64 MiB (its
+/// sample ranges), and the sums of the largest film.
+const MAX_STATE_BYTES: u64 = 24 + (64 << 20) + 48 * crate::camera::MAX_PIXELS;
+
 /// What makes two renders' sums addable: same scene content, estimator,
 /// seed, resolution and estimator options.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -98,7 +102,7 @@ impl RenderState {
         for (name, part) in parts {
             merged.identity.ensure_same(&first_name, &part.identity, &name)?;
             owners.extend(part.sample_ranges.iter().map(|r| (r.clone(), name.clone())));
-            merged.film.add(&part.film)?;
+            merged.film.add(&part.film).with_context(|| format!("adding {name}"))?;
         }
         owners.retain(|(r, _)| !r.is_empty());
         owners.sort_by_key(|(r, _)| (r.start, r.end));
@@ -140,7 +144,17 @@ impl RenderState {
     }
 
     /// Reads and validates a state file; errors name the file and the fault.
+    /// Only a regular file no larger than a state can be is read (a device
+    /// or a FIFO would never end).
     pub fn load(path: &Path) -> Result<RenderState> {
+        let meta = std::fs::metadata(path).with_context(|| format!("cannot read {}", path.display()))?;
+        ensure!(meta.is_file(), "cannot read {}: not a regular file", path.display());
+        ensure!(
+            meta.len() <= MAX_STATE_BYTES,
+            "{}: {} bytes, more than a state file of the largest film holds",
+            path.display(),
+            meta.len()
+        );
         let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
         Self::parse(&bytes).with_context(|| format!("{}: not a usable prism state file", path.display()))
     }
@@ -182,6 +196,10 @@ impl RenderState {
             *sum = i128::from_le_bytes(bytes.try_into()?);
         }
         film.spp = ranges.iter().map(|r| r.len() as u64).sum();
+        ensure!(
+            film.spp > 0 || film.sums.iter().flatten().all(|&c| c == 0),
+            "sums without samples (sample_ranges empty)"
+        );
         film.dropped = header.dropped;
         Ok(RenderState { identity: header.identity, sample_ranges: ranges, film })
     }
@@ -273,5 +291,39 @@ mod tests {
         assert!(e.err().unwrap().to_string().contains("b has seed 2 but a has 1"));
         let e = RenderState::merge(vec![("a".into(), state(1, 0..16)), ("b".into(), state(1, 8..24))]);
         assert!(e.err().unwrap().to_string().contains("overlap"));
+        // Sums beyond the exact range name the part that took them there
+        // (the fifth i128::MAX / 4), and dropped counts saturate, not wrap.
+        let parts = [0..16, 16..32, 32..48, 48..64, 64..80].map(|r| (format!("p{}", r.start), state(1, r)));
+        let e = RenderState::merge(parts.into());
+        let e = e.err().map(|e| format!("{e:#}")).unwrap_or_default();
+        assert!(e.starts_with("adding p64: the summed samples leave the film's exact range"), "{e}");
+        let mut a = state(1, 0..16);
+        a.film.dropped.nan = u64::MAX;
+        let m = RenderState::merge(vec![("a".into(), a), ("b".into(), state(1, 16..32))]).unwrap();
+        assert_eq!((m.film.dropped.nan, m.film.dropped.total()), (u64::MAX, u64::MAX));
+    }
+
+    /// From an audit: a state of no samples whose sums are not zero (prism
+    /// writes none; one would add garbage to a merge) is refused, and so is
+    /// a file that is no regular file (`/dev/zero` was read until memory
+    /// ran out).
+    #[test]
+    fn refuses_sums_without_samples_and_files_that_are_no_state() {
+        let dir = std::env::temp_dir().join(format!("prism-state-odd-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("a.state");
+        let s = state(1, 0..0);
+        RenderState::save(&path, &s.identity, &s.sample_ranges, &s.film).unwrap();
+        let e = RenderState::load(&path).err().map(|e| format!("{e:#}")).unwrap_or_default();
+        assert!(e.contains("sums without samples"), "{e}");
+        let mut zero = state(1, 0..0);
+        zero.film = Film::new(2, 1);
+        RenderState::save(&path, &zero.identity, &zero.sample_ranges, &zero.film).unwrap();
+        assert!(RenderState::load(&path).is_ok(), "a state of no samples and zero sums");
+        for odd in [Path::new("/dev/zero"), dir.as_path()] {
+            let e = RenderState::load(odd).err().map(|e| format!("{e:#}")).unwrap_or_default();
+            assert!(e.contains("not a regular file"), "{e}");
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

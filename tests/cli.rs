@@ -316,6 +316,35 @@ fn grown_parts_and_ignored_options_merge() {
     let _ = std::fs::remove_dir_all(&d);
 }
 
+/// A render that checkpoints does not replace, and then remove, a
+/// checkpoint it was not asked to resume: that holds an interrupted
+/// render's samples (from an audit: it went without a word). Resumed, it is
+/// read, grown and removed once the outputs are written.
+#[test]
+fn a_checkpoint_not_resumed_is_kept() {
+    let d = temp_dir("ckpt-kept");
+    let scene = write(&d, "s.json", scenes::TINY_SCENE);
+    let path = |name: &str| d.join(name).display().to_string();
+    let render = |extra: &[&str]| {
+        let mut args = vec!["render", scene.as_str(), "--threads", "1", "--quiet"];
+        args.extend_from_slice(extra);
+        prism(&args)
+    };
+    let o = render(&["--sample-range", "0..1", "--out", &path("p.exr")]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    std::fs::copy(d.join("p.state"), d.join("c.ckpt")).unwrap();
+    let held = std::fs::read(d.join("c.ckpt")).unwrap();
+    let o = render(&["--spp", "2", "--checkpoint-every", "0", "--out", &path("c.exr")]);
+    let e = stderr(&o);
+    assert!(!o.status.success() && e.contains("c.ckpt holds the samples of an interrupted render"), "{e}");
+    assert_eq!(std::fs::read(d.join("c.ckpt")).unwrap(), held, "the checkpoint changed");
+    assert!(!d.join("c.exr").exists());
+    let o = render(&["--spp", "2", "--checkpoint-every", "0", "--resume", &path("c.ckpt"), "--out", &path("c.exr")]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(d.join("c.exr").exists() && !d.join("c.ckpt").exists());
+    let _ = std::fs::remove_dir_all(&d);
+}
+
 /// An export over an earlier one leaves exactly the meshes its scene.xml
 /// names: an earlier export's higher-numbered `meshes/NNN.ply` are removed
 /// (also past 999, which has four digits)
