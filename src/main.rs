@@ -584,11 +584,8 @@ fn merge_command(out: &Path, parts: &[PathBuf]) -> Result<()> {
         &inputs.iter().map(|p| ("the part state", p.as_path())).collect::<Vec<_>>(),
         &[("the merged image", out), ("its sidecar", &sidecar), ("its state file", &state)],
     )?;
-    let states = inputs
-        .iter()
-        .map(|path| Ok((path.display().to_string(), RenderState::load(path)?)))
-        .collect::<Result<Vec<_>>>()?;
-    let merged = RenderState::merge(states)?;
+    let merged =
+        RenderState::merge(inputs.iter().map(|path| Ok((path.display().to_string(), RenderState::load(path)?))))?;
     let (id, film) = (&merged.identity, &merged.film);
     // The state first, as a render writes it: it is what `merge` reads, and
     // if the process dies in between, a new state beside an old image is

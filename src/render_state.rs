@@ -93,13 +93,16 @@ impl RenderState {
     }
 
     /// Adds parts (name, state) of one image into one state: refuses parts of
-    /// different renders (`Identity`) and parts whose samples overlap.
-    pub fn merge(parts: Vec<(String, RenderState)>) -> Result<RenderState> {
+    /// different renders (`Identity`) and parts whose samples overlap. The
+    /// parts are taken one at a time (loaded as they come, each dropped once
+    /// added: memory for two films, not for every part).
+    pub fn merge(parts: impl IntoIterator<Item = Result<(String, RenderState)>>) -> Result<RenderState> {
         let mut parts = parts.into_iter();
-        let (first_name, mut merged) = parts.next().context("nothing to merge")?;
+        let (first_name, mut merged) = parts.next().context("nothing to merge")??;
         let mut owners: Vec<(Range<u32>, String)> =
             merged.sample_ranges.iter().map(|r| (r.clone(), first_name.clone())).collect();
-        for (name, part) in parts {
+        for part in parts {
+            let (name, part) = part?;
             merged.identity.ensure_same(&first_name, &part.identity, &name)?;
             owners.extend(part.sample_ranges.iter().map(|r| (r.clone(), name.clone())));
             merged.film.add(&part.film).with_context(|| format!("adding {name}"))?;
@@ -280,26 +283,30 @@ mod tests {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
+    fn merge(parts: Vec<(String, RenderState)>) -> Result<RenderState> {
+        RenderState::merge(parts.into_iter().map(Ok))
+    }
+
     #[test]
     fn merge_adds_and_refuses_mismatch_or_overlap() {
-        let m = RenderState::merge(vec![("b".into(), state(1, 16..32)), ("a".into(), state(1, 0..16))]).unwrap();
+        let m = merge(vec![("b".into(), state(1, 16..32)), ("a".into(), state(1, 0..16))]).unwrap();
         assert_eq!(
             (m.sample_ranges.as_slice(), m.film.spp, m.film.sums[1]),
             (std::slice::from_ref(&(0..32)), 32, [6, 8, 10])
         );
-        let e = RenderState::merge(vec![("a".into(), state(1, 0..16)), ("b".into(), state(2, 16..32))]);
+        let e = merge(vec![("a".into(), state(1, 0..16)), ("b".into(), state(2, 16..32))]);
         assert!(e.err().unwrap().to_string().contains("b has seed 2 but a has 1"));
-        let e = RenderState::merge(vec![("a".into(), state(1, 0..16)), ("b".into(), state(1, 8..24))]);
+        let e = merge(vec![("a".into(), state(1, 0..16)), ("b".into(), state(1, 8..24))]);
         assert!(e.err().unwrap().to_string().contains("overlap"));
         // Sums beyond the exact range name the part that took them there
         // (the fifth i128::MAX / 4), and dropped counts saturate, not wrap.
         let parts = [0..16, 16..32, 32..48, 48..64, 64..80].map(|r| (format!("p{}", r.start), state(1, r)));
-        let e = RenderState::merge(parts.into());
+        let e = merge(parts.into());
         let e = e.err().map(|e| format!("{e:#}")).unwrap_or_default();
         assert!(e.starts_with("adding p64: the summed samples leave the film's exact range"), "{e}");
         let mut a = state(1, 0..16);
         a.film.dropped.nan = u64::MAX;
-        let m = RenderState::merge(vec![("a".into(), a), ("b".into(), state(1, 16..32))]).unwrap();
+        let m = merge(vec![("a".into(), a), ("b".into(), state(1, 16..32))]).unwrap();
         assert_eq!((m.film.dropped.nan, m.film.dropped.total()), (u64::MAX, u64::MAX));
     }
 
