@@ -8,7 +8,8 @@ use prism::film::{
 };
 use prism::integrators::{self, Integrator, IntegratorOptions, MisHeuristic, INTEGRATORS};
 use prism::render::{
-    check_threads, render_chunked, render_with_strategies, RenderOptions, RenderStats, StrategyImages,
+    check_threads, is_strategy_image, render_chunked, render_with_strategies, RenderOptions, RenderStats,
+    StrategyImages,
 };
 use prism::render_state::{fnv1a, Identity, RenderState};
 use prism::scene::{load_scene, Scene};
@@ -128,7 +129,8 @@ struct RenderArgs {
     #[arg(long)]
     mis: Option<MisHeuristic>,
     /// Also write one EXR per BDPT strategy (s, t), weighted and unweighted,
-    /// into this directory (created if missing; bdpt only).
+    /// into this directory (created if missing; bdpt only), listed in the
+    /// sidecar; an earlier render's other strategy images there are removed.
     #[arg(long, value_name = "DIR")]
     strategies: Option<PathBuf>,
     /// Render K independent passes of --spp samples (seeds seed, seed+1, ...):
@@ -179,6 +181,9 @@ struct Sidecar {
     /// The film's exact sums, for `prism merge` (--sample-range, merge).
     #[serde(skip_serializing_if = "Option::is_none")]
     state: Option<String>,
+    /// The per-strategy images written to --strategies DIR (file names).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    strategy_images: Option<Vec<String>>,
     /// This process's work (a resumed render counts only its own).
     #[serde(flatten, skip_serializing_if = "Option::is_none")]
     performance: Option<Performance>,
@@ -207,6 +212,7 @@ impl Sidecar {
             passes: None,
             variance: None,
             state: None,
+            strategy_images: None,
             performance: None,
             dropped_samples: dropped,
             prism_version: env!("CARGO_PKG_VERSION"),
@@ -401,6 +407,11 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
     if let Some(dir) = &a.strategies {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
         check_writable(&dir.join("s0_t2_weighted.exr"))?;
+        let in_dir = |p: &Path| p.parent().and_then(|d| d.canonicalize().ok()) == dir.canonicalize().ok();
+        let name = |p: &Path| p.file_name().and_then(|n| n.to_str()).unwrap_or_default().to_string();
+        if let Some((role, path)) = outputs.iter().find(|(_, p)| in_dir(p) && is_strategy_image(&name(p))) {
+            bail!("{role} {} is where --strategies writes a strategy's image: choose another name", path.display());
+        }
     }
     let scene_bytes = std::fs::read(&a.scene).with_context(|| format!("cannot read {}", a.scene.display()))?;
     let scene = builder.build();
@@ -482,7 +493,8 @@ fn render_command(a: RenderArgs) -> Result<()> {
     });
     out.json(&a.out.with_extension("json"), &sidecar)?;
     out.commit()?;
-    if let Some(dir) = &a.strategies {
+    if let (Some(dir), Some(names)) = (&a.strategies, &sidecar.strategy_images) {
+        remove_stale_strategy_images(dir, names)?;
         eprintln!("wrote the per-strategy images to {}", dir.display());
     }
     let checkpoint = a.out.with_extension("ckpt");
@@ -566,13 +578,28 @@ fn render_passes(
     Ok((mean, sidecar, stats))
 }
 
+/// Removes the strategy images in `dir` an earlier render left and this one
+/// did not write (`written`), so the directory holds one render's images.
+fn remove_stale_strategy_images(dir: &Path, written: &[String]) -> Result<()> {
+    let listing = std::fs::read_dir(dir).with_context(|| format!("cannot list {}", dir.display()))?;
+    for entry in listing {
+        let path = entry.with_context(|| format!("cannot list {}", dir.display()))?.path();
+        let name = path.file_name().and_then(|n| n.to_str()).unwrap_or_default();
+        if is_strategy_image(name) && !written.iter().any(|w| w == name) {
+            std::fs::remove_file(&path).with_context(|| format!("cannot remove {}", path.display()))?;
+        }
+    }
+    Ok(())
+}
+
 /// --strategies: the image plus one image per BDPT strategy.
 fn render_strategies(s: &Setup, dir: &Path, out: &mut Outputs) -> Result<(Vec<[f32; 3]>, Sidecar, RenderStats)> {
     let mut film = Film::new(s.identity.width, s.identity.height);
     let mut images = StrategyImages::new(film.width, film.height);
     let stats = render_with_strategies(&s.scene, s.integrator.as_ref(), &s.opts, &mut film, 0..s.spp, &mut images);
-    images.stage_exrs(dir, out)?;
-    let sidecar = Sidecar::new(s.identity.clone(), film.spp, std::slice::from_ref(&(0..s.spp)), film.dropped);
+    let names = images.stage_exrs(dir, out)?;
+    let mut sidecar = Sidecar::new(s.identity.clone(), film.spp, std::slice::from_ref(&(0..s.spp)), film.dropped);
+    sidecar.strategy_images = Some(names);
     Ok((film.image(), sidecar, stats))
 }
 

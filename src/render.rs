@@ -116,17 +116,28 @@ impl StrategyImages {
     }
 
     /// Stages `s<s>_t<t>_weighted.exr` and `s<s>_t<t>_unweighted.exr` for
-    /// every strategy in `dir`.
-    pub fn stage_exrs(&self, dir: &Path, out: &mut Outputs) -> anyhow::Result<()> {
+    /// every strategy in `dir`; returns their file names.
+    pub fn stage_exrs(&self, dir: &Path, out: &mut Outputs) -> anyhow::Result<Vec<String>> {
+        let mut names = Vec::new();
         for &(s, t) in self.sums.keys() {
             for (weighted, name) in [(true, "weighted"), (false, "unweighted")] {
-                let path = dir.join(format!("s{s}_t{t}_{name}.exr"));
+                let file = format!("s{s}_t{t}_{name}.exr");
                 let image = self.image(s, t, weighted).expect("strategy present");
-                out.exr(&path, self.width, self.height, &image)?;
+                out.exr(&dir.join(&file), self.width, self.height, &image)?;
+                names.push(file);
             }
         }
-        Ok(())
+        Ok(names)
     }
+}
+
+/// Whether `name` is a file name `StrategyImages::stage_exrs` writes.
+pub fn is_strategy_image(name: &str) -> bool {
+    let number = |x: &str| !x.is_empty() && x.bytes().all(|b| b.is_ascii_digit());
+    let Some(rest) = name.strip_prefix('s') else { return false };
+    let Some((s, rest)) = rest.split_once("_t") else { return false };
+    let Some((t, kind)) = rest.split_once('_') else { return false };
+    number(s) && number(t) && (kind == "weighted.exr" || kind == "unweighted.exr")
 }
 
 /// A task's strategy records: per-(s, t) sums over its own pixels (t >= 2)

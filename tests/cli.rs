@@ -345,6 +345,48 @@ fn a_checkpoint_not_resumed_is_kept() {
     let _ = std::fs::remove_dir_all(&d);
 }
 
+/// `--strategies DIR` leaves exactly one render's strategy images there,
+/// the ones its sidecar lists: a shallower render over a deeper one's
+/// removes the images of strategies it has not (they were left, and a sum
+/// over the directory mixed two renders). Other files stay, and an output
+/// named like a strategy image in DIR is refused before rendering.
+#[test]
+fn strategy_images_are_one_renders() {
+    let d = temp_dir("strategies");
+    let scene = "scenes/cornell-box.json";
+    let (dir, out) = (d.join("st").display().to_string(), d.join("img.exr").display().to_string());
+    let render = |depth: &str| {
+        let args = ["render", scene, "--integrator", "bdpt", "--max-depth", depth, "--spp", "1", "--quiet"];
+        let args = [&args[..], &["--width", "8", "--height", "8"]].concat();
+        let o = prism(&[&args[..], &["--strategies", &dir, "--out", &out]].concat());
+        assert!(o.status.success(), "{}", stderr(&o));
+        let sidecar: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(d.join("img.json")).unwrap()).unwrap();
+        let mut listed: Vec<String> =
+            sidecar["strategy_images"].as_array().unwrap().iter().map(|v| v.as_str().unwrap().to_string()).collect();
+        listed.sort();
+        let mut here: Vec<String> = std::fs::read_dir(d.join("st"))
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n != "notes.txt")
+            .collect();
+        here.sort();
+        assert_eq!(here, listed, "depth {depth}");
+        listed
+    };
+    let deep = render("3");
+    std::fs::write(d.join("st/notes.txt"), b"not ours").unwrap();
+    let shallow = render("1");
+    assert!(shallow.len() < deep.len() && shallow.iter().all(|n| deep.contains(n)), "{shallow:?} / {deep:?}");
+    assert!(d.join("st/notes.txt").exists());
+    let clash = d.join("st/s0_t2_weighted.exr").display().to_string();
+    let o = prism(&["render", scene, "--integrator", "bdpt", "--strategies", &dir, "--out", &clash, "--quiet"]);
+    let e = stderr(&o);
+    assert!(!o.status.success() && e.contains("is where --strategies writes a strategy's image"), "{e}");
+    assert!(!e.contains("spp in"), "it rendered first: {e}");
+    let _ = std::fs::remove_dir_all(&d);
+}
+
 /// An export over an earlier one leaves exactly the meshes its scene.xml
 /// names: an earlier export's higher-numbered `meshes/NNN.ply` are removed
 /// (also past 999, which has four digits)
