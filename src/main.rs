@@ -107,8 +107,8 @@ struct RenderArgs {
     /// Optional PNG preview (sRGB, clamped).
     #[arg(long)]
     png: Option<PathBuf>,
-    /// PNG exposure in stops.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    /// PNG exposure in stops (with --png).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, requires = "png")]
     exposure: f32,
     #[arg(long)]
     width: Option<u32>,

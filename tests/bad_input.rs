@@ -595,6 +595,15 @@ const CASES: &[Case] = &[
         words: &["--exposure must be a number of stops in [-126, 127], got NaN"],
     },
     Case {
+        // The exposure is the PNG preview's: without one it was ignored.
+        id: "exposure-without-png",
+        edits: &[],
+        args: &["--exposure", "5"],
+        out: "out.exr",
+        position: "",
+        words: &["the following required arguments were not provided"],
+    },
+    Case {
         id: "exposure-overflow",
         edits: &[],
         args: &["--exposure", "130", "--png", "{dir}/preview.png"],
