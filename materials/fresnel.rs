@@ -61,10 +61,14 @@ pub fn fr_conductor(cos_theta_i: f32, eta: SampledSpectrum, k: SampledSpectrum) 
     let a = sqrt4(0.5 * (a2_plus_b2 + t0));
     let t1 = a2_plus_b2 + Vec4::splat(cos2);
     let t2 = 2.0 * cos_i * a;
-    let rs = ratio_or_one(t1 - t2, t1 + t2);
+    // The numerators are (a - cos)^2 + b^2 and (a cos - sin^2)^2 + b^2 cos^2,
+    // never negative, but computed as differences they cancel to a few ulps
+    // below 0 for an index near 1 + 0i (negative reflectance, whose samples
+    // the film drops).
+    let rs = ratio_or_one((t1 - t2).max(Vec4::ZERO), t1 + t2);
     let t3 = cos2 * a2_plus_b2 + Vec4::splat(sin2 * sin2);
     let t4 = t2 * sin2;
-    let rp = rs * ratio_or_one(t3 - t4, t3 + t4);
+    let rp = rs * ratio_or_one((t3 - t4).max(Vec4::ZERO), t3 + t4);
     SampledSpectrum(0.5 * (rs + rp))
 }
 
@@ -122,6 +126,19 @@ mod tests {
         assert!((fr_dielectric(-1.0, 1.5) - r0).abs() < 1e-6);
         assert_eq!(fr_dielectric(-0.3, 1.5), 1.0);
         assert_eq!(fr_dielectric(0.0, 1.0), 0.0);
+    }
+
+    /// Near the matched index 1 + 0i the reflectance is ~0 and must not go
+    /// below it (an audit found R < 0 at 11 % of cosines for eta = 1, k = 0).
+    #[test]
+    fn conductor_near_a_matched_index_is_never_negative() {
+        for (eta, k) in [(1.0f32, 0.0f32), (1.0001, 0.0), (0.9999, 0.0), (1.0, 1e-4), (1.0001, 1e-4)] {
+            for i in 0..=10_000 {
+                let c = i as f32 / 10_000.0;
+                let r = fr_conductor(c, SampledSpectrum::splat(eta), SampledSpectrum::splat(k));
+                assert!((0.0..=1.0).contains(&r[0]), "eta {eta}, k {k}, cos {c}: R = {}", r[0]);
+            }
+        }
     }
 
     #[test]
