@@ -19,7 +19,7 @@ use crate::materials::Bsdf;
 use crate::sampling::AliasTable;
 use crate::shapes::Mesh;
 use crate::spectrum::{SampledWavelengths, Spectrum};
-use glam::Vec3A;
+use glam::{DVec3, Vec3A};
 use std::cell::Cell;
 
 thread_local! {
@@ -79,6 +79,15 @@ fn read_regular_file(path: &std::path::Path) -> std::io::Result<Vec<u8>> {
     } else {
         Err(std::io::Error::other("not a regular file"))
     }
+}
+
+/// Whether a triangle with an area (in f64) has a cross product whose
+/// squared length, which its normal and area are computed from, is not a
+/// normal f32: subnormal (few bits left) or zero (the BVH leaves it out).
+fn too_small_for_f32(v: &[Vec3A; 3]) -> bool {
+    let l2 = (v[1] - v[0]).cross(v[2] - v[0]).length_squared();
+    let [a, b, c] = v.map(|p| p.as_dvec3());
+    l2 < f32::MIN_POSITIVE && a.is_finite() && b.is_finite() && c.is_finite() && (b - a).cross(c - a) != DVec3::ZERO
 }
 
 /// Geometric normal from the winding, normalize((v1 - v0) x (v2 - v0)), and
@@ -157,6 +166,8 @@ pub struct Scene {
     /// Vertices of the degenerate triangles, which the BVH does not store
     /// (never hit; kept for `triangles`), sorted by triangle index.
     degenerate: Vec<(u32, [Vec3A; 3])>,
+    /// Triangles too small for f32 (`too_small_for_f32`).
+    too_small: usize,
     pub materials: Vec<Material>,
     pub lights: Vec<Light>,
     /// For each light, the name of the object or light entry it came from.
@@ -306,6 +317,7 @@ impl SceneBuilder {
         }
         let degenerate: Vec<(u32, [Vec3A; 3])> =
             accel.degenerate().iter().map(|&i| (i, vertices(i as usize))).collect();
+        let too_small = (0..start as usize).filter(|&i| too_small_for_f32(&vertices(i))).count();
         // Positions now live in the BVH; keep indices and normals of the
         // meshes that have normals, drop the rest.
         for (record, (mesh, ..)) in records.iter_mut().zip(self.meshes) {
@@ -335,6 +347,7 @@ impl SceneBuilder {
             meshes: records,
             slot_mesh,
             degenerate,
+            too_small,
             materials: self.materials,
             lights,
             light_names,
@@ -470,6 +483,19 @@ impl Scene {
         self.accel.len()
     }
 
+    /// A warning if triangles are too small for f32 (`too_small_for_f32`):
+    /// a scene modelled at 1e-11 units read 12 % bright (its emitter's
+    /// area), and at 1e-12 black (every triangle left the BVH).
+    pub fn too_small_triangles(&self) -> Option<String> {
+        let n = self.too_small;
+        (n > 0).then(|| {
+            format!(
+                "{n} triangle(s) are too small or too thin for f32 arithmetic: their normals and areas lose \
+                 precision or vanish (a scene modelled at ~1e-10 units or less needs scaling up)"
+            )
+        })
+    }
+
     /// The triangles as built, in input order (scene exporters): vertices
     /// in winding order, per-vertex shading normals, material, area light.
     /// Makes the input -> BVH slot map (4 bytes per triangle) for the
@@ -530,6 +556,33 @@ mod tests {
         let picks: Vec<u32> =
             [0.1, 0.5, 0.9].iter().map(|&u| scene.sample_light(u).expect("no light sampling").0).collect();
         assert_eq!(picks, [1, 1, 1], "the brighter light is chosen (its pmf is ~1)");
+    }
+
+    /// Triangles whose normals f32 cannot hold are counted and warned of:
+    /// a unit quad at 1e-11 units (its cross product's squared length,
+    /// 1e-44, is subnormal) and at 1e-12 (0), not at 1e-9, nor a triangle
+    /// without area.
+    #[test]
+    fn triangles_too_small_for_f32_are_warned_of() {
+        let warning = |scale: f32| {
+            let camera = Camera::new(Vec3A::new(0.0, 0.0, -5.0), Vec3A::ZERO, Vec3A::Y, 40.0, 8, 8);
+            let mut b = SceneBuilder::new(camera);
+            let grey = b.material("grey", Bsdf::Diffuse(Diffuse::new(Spectrum::Constant(0.5))));
+            let quad = [Vec3A::ZERO, Vec3A::X, Vec3A::X + Vec3A::Y, Vec3A::Y].map(|p| p * scale);
+            b.mesh("quad", Mesh::quad(quad), grey, None);
+            let flat = Mesh {
+                positions: vec![Vec3A::ZERO, Vec3A::X, Vec3A::X * 2.0],
+                normals: Vec::new(),
+                indices: vec![[0, 1, 2]],
+            };
+            b.mesh("no area", flat, grey, None);
+            b.build().too_small_triangles()
+        };
+        for scale in [1e-11, 1e-12] {
+            let w = warning(scale).unwrap_or_default();
+            assert!(w.starts_with("2 triangle(s) are too small or too thin for f32"), "{scale}: {w}");
+        }
+        assert_eq!(warning(1e-9), None);
     }
 
     /// Meshes of every kind (flat, smooth, emissive, empty, with a
