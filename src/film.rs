@@ -220,24 +220,27 @@ pub fn ensure_extension(flag: &str, path: &Path, ext: &str) -> Result<()> {
     Ok(())
 }
 
+/// A path with its directory resolved (and the file, if it exists), so
+/// that `./s.json`, `dir/../s.json` and an absolute spelling compare equal.
+pub fn resolve_path(p: &Path) -> PathBuf {
+    if let Ok(c) = std::fs::canonicalize(p) {
+        return c;
+    }
+    let dir = p.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let dir = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
+    dir.join(p.file_name().unwrap_or_default())
+}
+
 /// Refuses outputs that would replace an input or one another: `prism render
 /// s.json --out s.exr` would write its sidecar, s.json, over the scene.
 /// Files are named by their role ("the scene", "--png") and compared after
 /// resolving their directories (and the file, if it exists), so `./s.json`
 /// and `dir/../s.json` are the same file.
 pub fn check_outputs(inputs: &[(&str, &Path)], outputs: &[(&str, &Path)]) -> Result<()> {
-    let resolve = |p: &Path| -> PathBuf {
-        if let Ok(c) = std::fs::canonicalize(p) {
-            return c;
-        }
-        let dir = p.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-        let dir = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
-        dir.join(p.file_name().unwrap_or_default())
-    };
-    let inputs: Vec<_> = inputs.iter().map(|&(role, p)| (resolve(p), role, p)).collect();
+    let inputs: Vec<_> = inputs.iter().map(|&(role, p)| (resolve_path(p), role, p)).collect();
     let mut written: Vec<(PathBuf, &str, &Path)> = Vec::new();
     for &(role, out) in outputs {
-        let key = resolve(out);
+        let key = resolve_path(out);
         if let Some((_, input, p)) = inputs.iter().find(|(k, ..)| *k == key) {
             bail!("{role} {} would replace {input} {}: choose another output name", out.display(), p.display());
         }

@@ -4,7 +4,7 @@ use anyhow::{anyhow, bail, ensure, Context, Result};
 use clap::{Parser, Subcommand};
 use prism::camera::Camera;
 use prism::film::{
-    self, check_no_stale_state, check_outputs, check_writable, ensure_exr, DroppedSamples, Film, Outputs,
+    self, check_no_stale_state, check_outputs, check_writable, ensure_exr, resolve_path, DroppedSamples, Film, Outputs,
 };
 use prism::integrators::{self, Integrator, IntegratorOptions, MisHeuristic, INTEGRATORS};
 use prism::render::{
@@ -387,7 +387,7 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
         check_no_stale_state(&a.out, ", or render the part with --sample-range A..B")?;
     }
     let checkpoint = a.out.with_extension("ckpt");
-    if a.checkpoint_every.is_some() && checkpoint.exists() && a.resume.as_ref() != Some(&checkpoint) {
+    if a.checkpoint_every.is_some() && checkpoint.exists() && !resumes(a, &checkpoint) {
         bail!(
             "{} holds the samples of an interrupted render, which this one would replace: continue it with \
              --resume {0}, or remove it",
@@ -407,7 +407,8 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
     if let Some(dir) = &a.strategies {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
         check_writable(&dir.join("s0_t2_weighted.exr"))?;
-        let in_dir = |p: &Path| p.parent().and_then(|d| d.canonicalize().ok()) == dir.canonicalize().ok();
+        let dir = resolve_path(dir);
+        let in_dir = |p: &Path| resolve_path(p).parent() == Some(dir.as_path());
         let name = |p: &Path| p.file_name().and_then(|n| n.to_str()).unwrap_or_default().to_string();
         if let Some((role, path)) = outputs.iter().find(|(_, p)| in_dir(p) && is_strategy_image(&name(p))) {
             bail!("{role} {} is where --strategies writes a strategy's image: choose another name", path.display());
@@ -445,6 +446,11 @@ fn render_outputs(a: &RenderArgs) -> Vec<(&'static str, PathBuf)> {
         outs.push(("its checkpoint", a.out.with_extension("ckpt")));
     }
     outs
+}
+
+/// Whether the render resumes from `checkpoint`, however either is spelt.
+fn resumes(a: &RenderArgs, checkpoint: &Path) -> bool {
+    a.resume.as_deref().is_some_and(|r| resolve_path(r) == resolve_path(checkpoint))
 }
 
 /// Whether the render writes OUT.state, the sums `prism merge` reads: a
@@ -499,7 +505,7 @@ fn render_command(a: RenderArgs) -> Result<()> {
         eprintln!("wrote the per-strategy images to {}", dir.display());
     }
     let checkpoint = a.out.with_extension("ckpt");
-    if a.checkpoint_every.is_some() || a.resume.as_ref() == Some(&checkpoint) {
+    if a.checkpoint_every.is_some() || resumes(&a, &checkpoint) {
         // The outputs are complete: this render's checkpoint has done its job.
         let _ = std::fs::remove_file(checkpoint);
     }

@@ -339,7 +339,10 @@ fn a_checkpoint_not_resumed_is_kept() {
     assert!(!o.status.success() && e.contains("c.ckpt holds the samples of an interrupted render"), "{e}");
     assert_eq!(std::fs::read(d.join("c.ckpt")).unwrap(), held, "the checkpoint changed");
     assert!(!d.join("c.exr").exists());
-    let o = render(&["--spp", "2", "--checkpoint-every", "0", "--resume", &path("c.ckpt"), "--out", &path("c.exr")]);
+    // Resumed under another spelling of the same file.
+    std::fs::create_dir(d.join("sub")).unwrap();
+    let other_spelling = d.join("sub/../c.ckpt").display().to_string();
+    let o = render(&["--spp", "2", "--checkpoint-every", "0", "--resume", &other_spelling, "--out", &path("c.exr")]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(d.join("c.exr").exists() && !d.join("c.ckpt").exists());
     let _ = std::fs::remove_dir_all(&d);
@@ -384,6 +387,12 @@ fn strategy_images_are_one_renders() {
     let e = stderr(&o);
     assert!(!o.status.success() && e.contains("is where --strategies writes a strategy's image"), "{e}");
     assert!(!e.contains("spp in"), "it rendered first: {e}");
+    // The same clash named relative to the working directory.
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join(scene).display().to_string();
+    let args = ["render", &scene, "--integrator", "bdpt", "--strategies", ".", "--out", "s0_t2_weighted.exr"];
+    let o = Command::new(env!("CARGO_BIN_EXE_prism")).args(args).current_dir(d.join("st")).output().unwrap();
+    let e = stderr(&o);
+    assert!(!o.status.success() && e.contains("is where --strategies writes a strategy's image"), "{e}");
     let _ = std::fs::remove_dir_all(&d);
 }
 
