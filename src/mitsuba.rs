@@ -186,7 +186,8 @@ fn group_triangles(scene: &Scene) -> Vec<Group> {
             }
         };
         groups[k].positions.extend(v);
-        let ng = (v[1] - v[0]).cross(v[2] - v[0]).normalize();
+        // (Zero for a degenerate triangle, which is never hit.)
+        let ng = (v[1] - v[0]).cross(v[2] - v[0]).normalize_or_zero();
         groups[k].normals.extend(ns.into_iter().flatten().map(|n| winding_side(n, ng)));
     }
     groups

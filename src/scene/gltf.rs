@@ -234,7 +234,7 @@ fn json_text(bytes: &[u8]) -> Option<String> {
 /// `nodes[2] "name"`: its path (up to the first space, when that holds an
 /// index or is the whole label) is located in `text`.
 fn load_error(file: &str, text: Option<&str>, field: &str, message: String) -> LoadError {
-    let head = field.split(' ').next().unwrap_or_default();
+    let head = field.split(' ').next().unwrap_or_default().trim_end_matches(':');
     let path = (head.contains('[') || head == field).then(|| label_path(head)).flatten();
     let position = text.zip(path).map(|(t, p)| locate(t, &p));
     LoadError { file: file.to_string(), position, field: field.to_string(), message }
@@ -626,11 +626,15 @@ impl Importer {
         };
         // `check_layout` made each accessor read exactly `count` elements.
         let list = list.unwrap_or_else(|| (0..positions.len() as u32).collect());
-        // glTF 2.0, 3.7.2.1: TRIANGLES takes the vertices three at a time
-        // (the Khronos validator's MESH_PRIMITIVE_INCOMPATIBLE_MODE).
+        // glTF 2.0, 3.7.2.1: TRIANGLES takes the vertices three at a time;
+        // the rest make no triangle (a warning, as the Khronos validator's
+        // MESH_PRIMITIVE_INCOMPATIBLE_MODE is).
         if prim.mode() == Mode::Triangles && list.len() % 3 != 0 {
-            let why = format!("{} vertices do not make whole triangles (mode Triangles)", list.len());
-            return Err(self.fail(pwhat, why));
+            let n = list.len();
+            self.warn(
+                pwhat,
+                format!("{n} vertices do not make whole triangles (mode Triangles): the last {} are ignored", n % 3),
+            );
         }
         if let Some(i) = list.iter().find(|&&i| i as usize >= positions.len()) {
             return Err(self.fail(pwhat, format!("index {i} is out of range ({} positions)", positions.len())));
