@@ -205,10 +205,10 @@ struct MappedMaterial {
     emission: Option<(Spectrum, bool)>,
 }
 
-struct Importer {
+struct Importer<'a> {
     file: String,
     /// The file's JSON text, if it is a `.gltf` (`json_text`).
-    text: Option<String>,
+    text: Option<&'a str>,
     /// Shared so that walking it while the importer changes is cheap.
     doc: Rc<gltf::Document>,
     buffers: Vec<Vec<u8>>,
@@ -226,8 +226,8 @@ struct Importer {
 
 /// The text of a `.gltf` file, where its errors are located (a `.glb`
 /// frames its JSON in binary chunks: its errors have no line).
-fn json_text(bytes: &[u8]) -> Option<String> {
-    (!bytes.starts_with(b"glTF")).then(|| std::str::from_utf8(bytes).ok().map(str::to_string)).flatten()
+fn json_text(bytes: &[u8]) -> Option<&str> {
+    (!bytes.starts_with(b"glTF")).then(|| std::str::from_utf8(bytes).ok()).flatten()
 }
 
 /// An error at `field`, a label such as `meshes[0].primitives[1]` or
@@ -255,10 +255,10 @@ fn label_path(label: &str) -> Option<Vec<Seg>> {
     Some(path)
 }
 
-impl Importer {
-    fn open(bytes: &[u8], file: &str, dir: &Path) -> Result<Self, LoadError> {
+impl<'a> Importer<'a> {
+    fn open(bytes: &'a [u8], file: &str, dir: &Path) -> Result<Self, LoadError> {
         let text = json_text(bytes);
-        let fail = |field: &str, message: String| load_error(file, text.as_deref(), field, message);
+        let fail = |field: &str, message: String| load_error(file, text, field, message);
         let gltf::Gltf { document, blob } =
             gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| fail("", format!("not a valid glTF: {e}")))?;
         let json = document.into_json();
@@ -360,7 +360,7 @@ impl Importer {
     }
 
     fn fail(&self, what: &str, message: impl Into<String>) -> LoadError {
-        load_error(&self.file, self.text.as_deref(), what, message.into())
+        load_error(&self.file, self.text, what, message.into())
     }
 
     /// Walks the default scene (else the first) under `root`, depth first in
