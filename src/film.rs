@@ -162,10 +162,14 @@ impl Film {
             self.width,
             self.height
         );
-        let mut sums = self.sums.clone();
-        let fits = sums.iter_mut().zip(&other.sums).all(|(a, &b)| add_fixed(a, b));
+        // Checked first, then added: the film is left as it was on failure
+        // without a copy of its sums.
+        let fits = self.sums.iter().zip(&other.sums).all(|(&a, &b)| add_fixed(&mut { a }, b));
         ensure!(fits, "the summed samples leave the film's exact range (2^67 per pixel and colour channel)");
-        self.sums = sums;
+        for (a, &b) in self.sums.iter_mut().zip(&other.sums) {
+            let added = add_fixed(a, b);
+            debug_assert!(added, "checked above");
+        }
         self.spp += other.spp;
         self.dropped.merge(&other.dropped);
         Ok(())
@@ -555,5 +559,14 @@ mod tests {
         assert_eq!((a.sums[0][0], a.spp), (i128::MAX - 1, 1), "a refused addition changed the film");
         a.add(&film(1)).unwrap();
         assert_eq!((a.sums[0][0], a.spp), (i128::MAX, 2));
+        // Refused at the second pixel: the first is not added either.
+        let two = |sums: [i128; 2]| {
+            let mut f = Film::new(2, 1);
+            f.sums = sums.map(|s| [s, 0, 0]).to_vec();
+            f
+        };
+        let mut b = two([5, i128::MAX]);
+        assert!(b.add(&two([1, 1])).is_err());
+        assert_eq!(b.sums, two([5, i128::MAX]).sums, "a refused addition changed the film");
     }
 }

@@ -95,8 +95,8 @@ impl RenderState {
     /// Adds parts (name, state) of one image into one state: refuses parts of
     /// different renders (`Identity`) and parts whose samples overlap. The
     /// parts are taken one at a time (loaded as they come, each dropped once
-    /// added: memory for a few films, the sum, its copy in `Film::add` and
-    /// one part, not for every part).
+    /// added: memory for two films, the sum and one part, not for every
+    /// part).
     pub fn merge(parts: impl IntoIterator<Item = Result<(String, RenderState)>>) -> Result<RenderState> {
         let mut parts = parts.into_iter();
         let (first_name, mut merged) = parts.next().context("nothing to merge")??;
