@@ -200,7 +200,7 @@ fn next_event(
     lambda: &SampledWavelengths,
 ) -> Option<Connection> {
     let pt = &camera[t - 1];
-    let (u_light, u) = (sampler.get1d(), sampler.get2d());
+    let (u_light, u) = (sampler.get_bits(), sampler.get2d());
     if !pt.connectible {
         return None;
     }

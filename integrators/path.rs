@@ -182,7 +182,7 @@ fn next_event(
     sampler: &mut Sampler,
     lambda: &SampledWavelengths,
 ) -> SampledSpectrum {
-    let u_light = sampler.get1d();
+    let u_light = sampler.get_bits();
     let u = sampler.get2d();
     let Some((i, pmf)) = scene.sample_light(u_light) else {
         return SampledSpectrum::ZERO;

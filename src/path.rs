@@ -396,7 +396,7 @@ pub fn light_subpath<const MIS: bool>(
     path: &mut Vec<Vertex>,
 ) {
     path.clear();
-    let u_light = sampler.get1d();
+    let u_light = sampler.get_bits();
     let (u1, u2) = (sampler.get2d(), sampler.get2d());
     let Some((i, pmf)) = scene.sample_light(u_light) else {
         return;

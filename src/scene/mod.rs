@@ -463,8 +463,8 @@ impl Scene {
 
     /// Choose a light proportionally to power: (index, probability).
     #[inline]
-    pub fn sample_light(&self, u: f32) -> Option<(u32, f32)> {
-        let (i, pmf) = self.light_sampler.as_ref()?.sample(u);
+    pub fn sample_light(&self, bits: u64) -> Option<(u32, f32)> {
+        let (i, pmf) = self.light_sampler.as_ref()?.sample(bits);
         Some((i as u32, pmf))
     }
 
@@ -553,8 +553,10 @@ mod tests {
         b.point_light("star", Vec3A::X, Spectrum::Constant(4e36));
         let scene = b.build();
         assert!(scene.lights.iter().all(|l| l.power().is_finite()));
-        let picks: Vec<u32> =
-            [0.1, 0.5, 0.9].iter().map(|&u| scene.sample_light(u).expect("no light sampling").0).collect();
+        let picks: Vec<u32> = [1u64 << 60, 1 << 63, 15 << 60]
+            .iter()
+            .map(|&u| scene.sample_light(u).expect("no light sampling").0)
+            .collect();
         assert_eq!(picks, [1, 1, 1], "the brighter light is chosen (its pmf is ~1)");
     }
 
