@@ -134,17 +134,19 @@ pub fn uniform_triangle(u: Vec2) -> (f32, f32) {
     (pick(small, large), pick(large, small))
 }
 
-/// Veach's power heuristic with beta = 2 for two strategies with one sample each.
+/// Veach's power heuristic with beta = 2 for two strategies with one sample
+/// each. The squares are in f64: in f32 they overflow from pdfs of ~1.8e19
+/// on (two such pdfs weighed 0 and 0, or 1 and 1).
 #[inline]
 pub fn power_heuristic(pdf_a: f32, pdf_b: f32) -> f32 {
-    let (a, b) = (pdf_a * pdf_a, pdf_b * pdf_b);
+    let (a, b) = ((pdf_a as f64).powi(2), (pdf_b as f64).powi(2));
     if a.is_infinite() {
         return 1.0;
     }
     if a + b == 0.0 {
         0.0
     } else {
-        a / (a + b)
+        (a / (a + b)) as f32
     }
 }
 
@@ -225,6 +227,19 @@ impl AliasTable {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The two weights of a pair of strategies sum to 1 for any pdfs a
+    /// renderer may see, huge ones included (from an audit: 0 + 0 for
+    /// (1.3e19, 1.4e19), 1 + 1 for (2e19, 1e25) when squared in f32).
+    #[test]
+    fn power_heuristic_weights_sum_to_one() {
+        for (a, b) in [(1.0, 3.0), (1.3e19, 1.4e19), (2e19, 1e25), (3e38, 1e-30), (f32::MAX, f32::MAX)] {
+            let (wa, wb) = (power_heuristic(a, b), power_heuristic(b, a));
+            assert!((wa + wb - 1.0).abs() < 1e-6, "({a}, {b}): {wa} + {wb}");
+        }
+        assert_eq!(power_heuristic(0.0, 0.0), 0.0);
+        assert_eq!(power_heuristic(f32::INFINITY, 1.0), 1.0);
+    }
 
     #[test]
     fn sin_cos_quarter_matches_libm() {
