@@ -461,6 +461,27 @@ fn a_stored_reference_records_its_depth() {
     std::fs::remove_dir_all(&d).unwrap();
 }
 
+/// A run whose every checkpoint has relMSE 0 (a black furnace against its
+/// black reference) draws no slope -1 guide: there is no error for it to
+/// go through (from an audit: ln 0 put it along the chart's bottom edge,
+/// legend and all, for every line of the run).
+#[test]
+fn an_exact_run_draws_no_slope_guide() {
+    let d = temp_dir("exact-run");
+    let text = std::fs::read_to_string(scene_path("furnace.json")).unwrap();
+    assert!(text.contains("\"radiance\": 1.0"));
+    std::fs::write(d.join("black.json"), text.replace("\"radiance\": 1.0", "\"radiance\": 0.0")).unwrap();
+    let reference = ReferenceSource::Render { integrator: "path".into(), spp: 2, passes: 2, out: d.join("ref.exr") };
+    let mut cfg = config("furnace.json", "path", reference, &d.join("o"), 8);
+    cfg.scene = d.join("black.json");
+    cfg.max_spp = Some(2);
+    let r = run(&cfg).unwrap();
+    assert!(r.integrators[0].checkpoints.iter().all(|c| c.rel_mse == 0.0), "not an exact run");
+    let svg = std::fs::read_to_string(d.join("o/error-vs-spp.svg")).unwrap();
+    assert!(!svg.contains("slope -1"), "a slope guide with no error to go through");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
 /// A run shorter than the clock can measure (CPU seconds tick every 10 ms)
 /// has no efficiency and no rank, and says so; a reference whose own noise
 /// is a large part of the measured error is named in a note.

@@ -113,12 +113,14 @@ pub(super) fn chart_svg(r: &ConvergeResults, axis: Axis) -> Result<String> {
             chart.draw_series(pts.iter().map(|&p| Circle::new(p, 3, colour.filled()))).map_err(plot_err)?;
         }
         if axis == Axis::Spp {
-            // Slope -1 through the geometric mean of the first checkpoints.
+            // Slope -1 through the geometric mean of the first checkpoints
+            // with an error (a relMSE of 0, an exact image, has no log).
             let firsts: Vec<f64> = r
                 .integrators
                 .iter()
                 .filter_map(|x| x.checkpoints.first())
                 .map(|c| (c.rel_mse * c.spp as f64).ln())
+                .filter(|l| l.is_finite())
                 .collect();
             if !firsts.is_empty() {
                 let k = (firsts.iter().sum::<f64>() / firsts.len() as f64).exp();
