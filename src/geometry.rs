@@ -120,6 +120,20 @@ impl SurfacePoint {
     }
 }
 
+/// A shading normal as prism shades with it: `n` normalised and turned to
+/// the winding side `ng`, or `ng` itself where `n` is zero or not finite.
+#[inline]
+pub fn shading_normal(n: Vec3A, ng: Vec3A) -> Vec3A {
+    let n = n.normalize_or_zero();
+    if n == Vec3A::ZERO || !n.is_finite() {
+        ng
+    } else if n.dot(ng) < 0.0 {
+        -n
+    } else {
+        n
+    }
+}
+
 /// A shadow ray, the test of whether light passes between two points or
 /// from a point to infinity: nothing may block `ray` in (0, t_max).
 #[derive(Clone, Copy, Debug)]

@@ -42,6 +42,7 @@
 
 use crate::camera::Camera;
 use crate::film::Outputs;
+use crate::geometry::shading_normal;
 use crate::light::Light;
 use crate::materials::Bsdf;
 use crate::scene::{load_scene, Scene};
@@ -188,25 +189,13 @@ fn group_triangles(scene: &Scene) -> Vec<Group> {
         groups[k].positions.extend(v);
         // (Zero for a degenerate triangle, which is never hit.)
         let ng = (v[1] - v[0]).cross(v[2] - v[0]).normalize_or_zero();
-        groups[k].normals.extend(ns.into_iter().flatten().map(|n| winding_side(n, ng)));
+        // Each vertex normal as prism shades with it, on the winding side
+        // (Mitsuba's area emitter emits on its shading normal's side,
+        // prism's on the winding side). Prism turns the interpolated
+        // normal: for vertex normals on both sides the two differ inside.
+        groups[k].normals.extend(ns.into_iter().flatten().map(|n| shading_normal(n, ng)));
     }
     groups
-}
-
-/// A vertex normal as prism shades with it: turned to the winding side
-/// `ng` (Mitsuba's area emitter emits on its shading normal's side, prism's
-/// on the winding side), and `ng` itself where it is zero. (Prism turns the
-/// interpolated normal; for a triangle whose vertex normals lie on both
-/// sides the two differ inside it.)
-fn winding_side(n: Vec3A, ng: Vec3A) -> Vec3A {
-    let n = n.normalize_or_zero();
-    if n == Vec3A::ZERO {
-        ng
-    } else if n.dot(ng) < 0.0 {
-        -n
-    } else {
-        n
-    }
 }
 
 /// The pinhole as a `perspective` sensor (vertical fov, look-at) with an

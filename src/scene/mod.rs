@@ -13,7 +13,7 @@ pub use json::{load_scene, parse_scene, LoadError};
 
 use crate::accel::{Accel, TriangleHit, LANES};
 use crate::camera::Camera;
-use crate::geometry::{barycentric_error, Frame, Ray, Shadow, SurfacePoint, NO_TRIANGLE};
+use crate::geometry::{barycentric_error, shading_normal, Frame, Ray, Shadow, SurfacePoint, NO_TRIANGLE};
 use crate::light::{AreaLight, EnvironmentLight, Light, PointLight};
 use crate::materials::Bsdf;
 use crate::sampling::AliasTable;
@@ -394,14 +394,7 @@ impl Scene {
         let ns = match &m.shading {
             Some((indices, normals)) => {
                 let n = indices[k].map(|i| normals[i as usize]);
-                let ns = (n[0] * b0 + n[1] * hit.b1 + n[2] * hit.b2).normalize_or_zero();
-                if ns == Vec3A::ZERO || !ns.is_finite() {
-                    ng
-                } else if ns.dot(ng) < 0.0 {
-                    -ns
-                } else {
-                    ns
-                }
+                shading_normal(n[0] * b0 + n[1] * hit.b1 + n[2] * hit.b2, ng)
             }
             None => ng,
         };
