@@ -8,7 +8,7 @@ use crate::film::{read_exr, DroppedSamples, Film, Outputs};
 use crate::integrators::{Integrator, IntegratorOptions};
 use crate::render::RenderOptions;
 use crate::scene::Scene;
-use crate::stats::{pixel_mean_variance, render_pass_films, BlockStats};
+use crate::stats::{luminance, pixel_mean_variance, render_pass_films, BlockStats, ColourStats};
 use anyhow::{ensure, Context, Result};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -43,6 +43,11 @@ pub struct ReferenceMeta {
     /// Per-block mean and standard error of the mean (row-major blocks).
     pub block_mean: Vec<[f64; 3]>,
     pub block_stderr: Vec<[f64; 3]>,
+    /// Per-block standard error of the mean of luminance Y, which the
+    /// channels' own errors do not give (they are correlated; `Verdict`).
+    /// Absent in references made before it was recorded.
+    #[serde(default)]
+    pub block_y_stderr: Vec<f64>,
 }
 
 fn default_max_depth() -> u32 {
@@ -50,15 +55,29 @@ fn default_max_depth() -> u32 {
 }
 
 impl ReferenceMeta {
-    pub fn block_stats(&self) -> BlockStats {
-        BlockStats {
+    /// The block statistics the tests compare with (`stats::Verdict`); Y's
+    /// mean is that of the block means, Y being linear in them.
+    pub fn colour_stats(&self) -> Result<ColourStats> {
+        ensure!(
+            self.block_y_stderr.len() == self.block_mean.len(),
+            "the reference of {} has no luminance standard errors (made before they were recorded); remake it: {}",
+            self.scene,
+            self.command
+        );
+        let rgb = BlockStats {
             blocks_x: self.width / self.block,
             blocks_y: self.height / self.block,
             block: self.block,
             k: self.passes,
             mean: self.block_mean.clone(),
             stderr: self.block_stderr.clone(),
-        }
+        };
+        let y = BlockStats {
+            mean: rgb.mean.iter().map(|&m| [luminance(m), 0.0, 0.0]).collect(),
+            stderr: self.block_y_stderr.iter().map(|&s| [s, 0.0, 0.0]).collect(),
+            ..rgb.clone()
+        };
+        Ok(ColourStats { rgb, y })
     }
 }
 
@@ -85,7 +104,7 @@ pub fn make_reference(
     let wall_seconds = start.elapsed().as_secs_f64();
     let dropped_samples = films.iter().map(|f| f.dropped).sum();
     let images: Vec<_> = films.iter().map(Film::image).collect();
-    let stats = BlockStats::from_passes(&images, w, h, block);
+    let stats = ColourStats::from_passes(&images, w, h, block);
     let (mean, _) = pixel_mean_variance(&images);
     let meta = ReferenceMeta {
         scene: scene_name.to_string(),
@@ -102,8 +121,9 @@ pub fn make_reference(
         wall_seconds,
         command,
         dropped_samples,
-        block_mean: stats.mean,
-        block_stderr: stats.stderr,
+        block_mean: stats.rgb.mean,
+        block_stderr: stats.rgb.stderr,
+        block_y_stderr: stats.y.stderr.iter().map(|s| s[0]).collect(),
     };
     (mean, meta)
 }

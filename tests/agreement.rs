@@ -2,14 +2,15 @@
 //! can sample every light path, every pair of integrators agrees, and each
 //! agrees with a stored high-spp reference (tests/references, made by the
 //! command in its sidecar). Negative controls: a 2% bias and a dropped last
-//! bounce are rejected by the same harness.
+//! bounce are rejected by the same harness. Colours are compared by
+//! `stats::Verdict` (the chi-square on luminance, worst z on each channel).
 
 #[path = "common/scenes.rs"]
 mod scenes;
 
 use prism::integrators::{self, IntegratorOptions, INTEGRATORS};
 use prism::reference::read_reference;
-use prism::stats::{compare_in_family, render_passes, BlockStats};
+use prism::stats::{render_passes, ColourStats, Verdict};
 use scenes::scene;
 use std::path::Path;
 
@@ -21,16 +22,19 @@ const BLOCK: u32 = 8;
 fn spp_for(scene: &str, integrator: &str) -> u32 {
     match (scene, integrator) {
         (_, "simple_path") => 256,
-        (_, "light") => 32,
+        // The glossy box's blue, top right, has rare bright paths that
+        // only BSDF sampling finds: at 32 spp one seed in 80 read every
+        // pass low there (z 9 against the reference); at 128 none of 160.
+        ("cornell-glossy.json", "path") => 128,
         _ => 32,
     }
 }
 
-fn stats(scene_file: &str, integrator: &str, max_depth: u32, seed: u64) -> BlockStats {
+fn stats(scene_file: &str, integrator: &str, max_depth: u32, seed: u64) -> ColourStats {
     let s = scene(scene_file, RES, RES);
     let integ = integrators::create(integrator, &IntegratorOptions { max_depth, ..Default::default() }).unwrap();
     assert!(integ.unsamplable(&s).is_empty(), "{integrator} cannot sample {scene_file}: {:?}", integ.unsamplable(&s));
-    BlockStats::from_passes(
+    ColourStats::from_passes(
         &render_passes(&s, integ.as_ref(), spp_for(scene_file, integrator), K, seed, 0),
         RES,
         RES,
@@ -38,31 +42,31 @@ fn stats(scene_file: &str, integrator: &str, max_depth: u32, seed: u64) -> Block
     )
 }
 
-fn reference(scene_file: &str) -> BlockStats {
+fn reference(scene_file: &str) -> ColourStats {
     let exr = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/references").join(scene_file.replace(".json", ".exr"));
     let (_, meta) = read_reference(&exr).unwrap_or_else(|e| panic!("{e:#}"));
     assert_eq!((meta.width, meta.height, meta.block), (RES, RES, BLOCK));
-    meta.block_stats()
+    meta.colour_stats().unwrap_or_else(|e| panic!("{e:#}"))
 }
 
 /// Every integrator against the reference and against every other one.
 fn matrix(scene_file: &str) {
     let reference = reference(scene_file);
-    let all: Vec<(&str, BlockStats)> =
+    let all: Vec<(&str, ColourStats)> =
         INTEGRATORS.iter().map(|i| (i.name, stats(scene_file, i.name, 1024, 40))).collect();
     let n = all.len();
     let family = n + n * (n - 1) / 2;
     let mut failures = Vec::new();
     for (i, (name, s)) in all.iter().enumerate() {
-        let c = compare_in_family(s, &reference, family);
+        let c = Verdict::versus(s, &reference, family);
         eprintln!("{scene_file}: {name} vs reference: {c}");
-        if !c.passed {
+        if !c.passed() {
             failures.push(format!("{name} vs reference: {c}"));
         }
         for (other, t) in &all[i + 1..] {
-            let c = compare_in_family(s, t, family);
+            let c = Verdict::versus(s, t, family);
             eprintln!("{scene_file}: {name} vs {other}: {c}");
-            if !c.passed {
+            if !c.passed() {
                 failures.push(format!("{name} vs {other}: {c}"));
             }
         }
@@ -96,12 +100,12 @@ fn agreement_negative_controls() {
     let reference = reference("cornell-box.json");
     for i in INTEGRATORS {
         let s = stats("cornell-box.json", i.name, 1024, 41);
-        let c = compare_in_family(&s.scaled(1.02), &reference, 1);
+        let c = Verdict::versus(&s.scaled(1.02), &reference, 1);
         eprintln!("{} x1.02: {c}", i.name);
-        assert!(!c.passed, "{}: 2% bias passed: {c}", i.name);
-        let c = compare_in_family(&stats("cornell-box.json", i.name, 3, 42), &reference, 1);
+        assert!(!c.passed(), "{}: 2% bias passed: {c}", i.name);
+        let c = Verdict::versus(&stats("cornell-box.json", i.name, 3, 42), &reference, 1);
         eprintln!("{} max depth 3: {c}", i.name);
-        assert!(!c.passed, "{}: dropped bounces passed: {c}", i.name);
+        assert!(!c.passed(), "{}: dropped bounces passed: {c}", i.name);
     }
 }
 
@@ -117,15 +121,15 @@ fn every_integrator_agrees_at_a_small_max_depth() {
     let family = INTEGRATORS.len();
     let mut failures = Vec::new();
     for i in INTEGRATORS.iter().filter(|i| i.name != "path") {
-        let c = compare_in_family(&stats("cornell-box.json", i.name, 2, 44), &path, family);
+        let c = Verdict::versus(&stats("cornell-box.json", i.name, 2, 44), &path, family);
         eprintln!("max depth 2: {} vs path: {c}", i.name);
-        if !c.passed {
+        if !c.passed() {
             failures.push(format!("{}: {c}", i.name));
         }
     }
-    let c = compare_in_family(&stats("cornell-box.json", "path", 3, 45), &path, family);
+    let c = Verdict::versus(&stats("cornell-box.json", "path", 3, 45), &path, family);
     eprintln!("control: path at max depth 3 vs 2: {c}");
-    assert!(!c.passed, "one bounce more went unnoticed: {c}");
+    assert!(!c.passed(), "one bounce more went unnoticed: {c}");
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
@@ -145,23 +149,23 @@ fn agreement_with_smooth_shading_normals() {
     let s = scenes::scene_variant("cornell-box.json", RES, RES, from, sphere);
     let stats = |name: &str, spp: u32| {
         let integ = integrators::create(name, &IntegratorOptions::default()).unwrap();
-        BlockStats::from_passes(&render_passes(&s, integ.as_ref(), spp, K, 50, 0), RES, RES, BLOCK)
+        ColourStats::from_passes(&render_passes(&s, integ.as_ref(), spp, K, 50, 0), RES, RES, BLOCK)
     };
     let path = stats("path", 32);
     let mut failures = Vec::new();
     let mut light = None;
     for (name, spp) in [("bdpt", 32), ("light", 32)] {
         let st = stats(name, spp);
-        let c = compare_in_family(&st, &path, 2);
+        let c = Verdict::versus(&st, &path, 2);
         eprintln!("smooth normals: {name} vs path: {c}");
-        if !c.passed {
+        if !c.passed() {
             failures.push(format!("{name}: {c}"));
         }
         light = Some(st);
     }
-    let c = compare_in_family(&light.unwrap().scaled(1.02), &path, 2);
+    let c = Verdict::versus(&light.unwrap().scaled(1.02), &path, 2);
     eprintln!("smooth normals: light x1.02 vs path (control): {c}");
-    if c.passed {
+    if c.passed() {
         failures.push(format!("a 2% bias of light tracing passed: {c}"));
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
@@ -188,23 +192,23 @@ fn a_two_sided_emitter_agrees_across_integrators() {
     let (two, one) = (hung(", \"two_sided\": true"), hung(""));
     let stats = |s: &prism::scene::Scene, name: &str, spp: u32, seed: u64| {
         let integ = integrators::create(name, &IntegratorOptions::default()).unwrap();
-        BlockStats::from_passes(&render_passes(s, integ.as_ref(), spp, K, seed, 0), RES, RES, BLOCK)
+        ColourStats::from_passes(&render_passes(s, integ.as_ref(), spp, K, seed, 0), RES, RES, BLOCK)
     };
     let simple = stats(&two, "simple_path", 256, 60);
     let mut failures = Vec::new();
     let [.., bdpt] = ["path", "light", "bdpt"].map(|name| {
         let st = stats(&two, name, 32, 61);
-        let c = compare_in_family(&st, &simple, 3);
+        let c = Verdict::versus(&st, &simple, 3);
         eprintln!("two-sided emitter: {name} vs simple_path: {c}");
-        if !c.passed {
+        if !c.passed() {
             failures.push(format!("{name}: {c}"));
         }
         st
     });
     for (what, control) in [("one-sided", stats(&one, "path", 32, 62)), ("bdpt x1.02", bdpt.scaled(1.02))] {
-        let c = compare_in_family(&control, &simple, 3);
+        let c = Verdict::versus(&control, &simple, 3);
         eprintln!("two-sided emitter: {what} vs simple_path (control): {c}");
-        if c.passed {
+        if c.passed() {
             failures.push(format!("control {what} passed: {c}"));
         }
     }
@@ -231,21 +235,21 @@ fn agreement_across_one_rough_glass_interface() {
         let s = one_interface(flipped);
         let integ = integrators::create(name, &IntegratorOptions::default()).unwrap();
         assert!(integ.unsamplable(&s).is_empty(), "{name}: {:?}", integ.unsamplable(&s));
-        BlockStats::from_passes(&render_passes(&s, integ.as_ref(), spp, K, 60, 0), RES, RES, BLOCK)
+        ColourStats::from_passes(&render_passes(&s, integ.as_ref(), spp, K, 60, 0), RES, RES, BLOCK)
     };
     let path = stats("path", 32, false);
     let mut failures = Vec::new();
     for (name, spp) in [("bdpt", 32), ("light", 32)] {
-        let c = compare_in_family(&stats(name, spp, false), &path, 2);
+        let c = Verdict::versus(&stats(name, spp, false), &path, 2);
         eprintln!("one interface: {name} vs path: {c}");
-        if !c.passed {
+        if !c.passed() {
             failures.push(format!("{name}: {c}"));
         }
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
-    let c = compare_in_family(&stats("path", 32, true), &path, 1);
+    let c = Verdict::versus(&stats("path", 32, true), &path, 1);
     eprintln!("one interface, turned over (premise control): {c}");
-    assert!(!c.passed, "turning the interface over changed nothing: {c}");
+    assert!(!c.passed(), "turning the interface over changed nothing: {c}");
 }
 
 /// The scene of `agreement_across_one_rough_glass_interface`: the glass

@@ -13,7 +13,7 @@ use prism::render::{render, RenderOptions, Workspace};
 use prism::sampling::Sampler;
 use prism::scene::Scene;
 use prism::spectrum::{SampledSpectrum, SampledWavelengths};
-use prism::stats::{compare, render_passes, BlockStats};
+use prism::stats::{render_passes, ColourStats, Verdict};
 use scenes::{integrator, scene};
 
 const K: u32 = 16;
@@ -23,15 +23,15 @@ const K: u32 = 16;
 #[test]
 fn path_and_simple_path_agree_on_the_cornell_box() {
     let s = scene("cornell-box.json", 32, 32);
-    let a = BlockStats::from_passes(&render_passes(&s, integrator("path").as_ref(), 64, K, 10, 0), 32, 32, 8);
-    let b = BlockStats::from_passes(&render_passes(&s, integrator("simple_path").as_ref(), 512, K, 100, 0), 32, 32, 8);
-    let c = compare(&a, &b);
+    let a = ColourStats::from_passes(&render_passes(&s, integrator("path").as_ref(), 64, K, 10, 0), 32, 32, 8);
+    let b = ColourStats::from_passes(&render_passes(&s, integrator("simple_path").as_ref(), 512, K, 100, 0), 32, 32, 8);
+    let c = Verdict::versus(&a, &b, 1);
     eprintln!("cornell path vs simple_path: {c}");
-    assert!(c.passed, "{c}");
+    assert!(c.passed(), "{c}");
     for biased in [a.scaled(1.02), a.scaled(0.98)] {
-        let c = compare(&biased, &b);
+        let c = Verdict::versus(&biased, &b, 1);
         eprintln!("negative control: {c}");
-        assert!(!c.passed, "a 2% bias went undetected: {c}");
+        assert!(!c.passed(), "a 2% bias went undetected: {c}");
     }
 }
 

@@ -19,7 +19,7 @@ use prism::materials::Bsdf;
 use prism::render::{render, RenderOptions};
 use prism::scene::{gltf_conductor_eta_k, load_gltf, load_scene, parse_gltf, parse_scene, GltfScene, Scene};
 use prism::spectrum::{illuminant, rgb_albedo, spectrum_to_xyz, xyz_to_linear_srgb, Spectrum};
-use prism::stats::{compare, render_passes, BlockStats};
+use prism::stats::{render_passes, ColourStats, Verdict};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 
@@ -622,20 +622,20 @@ const K: u32 = 16;
 const SPP: u32 = 64;
 const BLOCK: u32 = 8;
 
-fn block_stats(scene: &Scene, seed: u64) -> BlockStats {
+fn block_stats(scene: &Scene, seed: u64) -> ColourStats {
     let passes = render_passes(scene, scenes::integrator("path").as_ref(), SPP, K, seed, 0);
-    BlockStats::from_passes(&passes, 32, 32, BLOCK)
+    ColourStats::from_passes(&passes, 32, 32, BLOCK)
 }
 
 /// The z-test both ways: `a` and `b` agree, and `b` scaled by 1.02 (a
 /// deliberate 2 % bias, the negative control) does not.
-fn assert_agree_and_control_fails(what: &str, a: &BlockStats, b: &BlockStats) {
-    let same = compare(a, b);
+fn assert_agree_and_control_fails(what: &str, a: &ColourStats, b: &ColourStats) {
+    let same = Verdict::versus(a, b, 1);
     eprintln!("{what}: {same}");
-    assert!(same.passed, "{what}: {same}");
-    let biased = compare(a, &b.scaled(1.02));
+    assert!(same.passed(), "{what}: {same}");
+    let biased = Verdict::versus(a, &b.scaled(1.02), 1);
     eprintln!("{what}, b x 1.02: {biased}");
-    assert!(!biased.passed, "{what}: the negative control passed: {biased}");
+    assert!(!biased.passed(), "{what}: the negative control passed: {biased}");
 }
 
 fn scene_at_32(mut b: prism::scene::SceneBuilder) -> Scene {

@@ -38,7 +38,7 @@ use prism::film::Film;
 use prism::integrators::{Integrator, MisHeuristic, INTEGRATORS};
 use prism::render::{render, RenderOptions};
 use prism::scene::{parse_scene, Scene};
-use prism::stats::{compare_in_family, BlockStats, ColourStats, Comparison, Image, Verdict};
+use prism::stats::{ColourStats, Image, Verdict};
 use scenes::{bdpt, integrator, scene};
 use std::path::Path;
 use std::process::Command;
@@ -171,11 +171,11 @@ fn masked(passes: &[Image], mask: &[bool]) -> Vec<Image> {
     passes.iter().map(|img| img.iter().zip(mask).map(|(p, &m)| if m { *p } else { [0.0; 3] }).collect()).collect()
 }
 
-fn stats(passes: &[Image], s: &Scene, block: u32) -> BlockStats {
-    BlockStats::from_passes(passes, s.camera.width, s.camera.height, block)
+fn stats(passes: &[Image], s: &Scene, block: u32) -> ColourStats {
+    ColourStats::from_passes(passes, s.camera.width, s.camera.height, block)
 }
 
-fn report(what: &str, c: &Comparison) {
+fn report(what: &str, c: &Verdict) {
     eprintln!("{what}: {c}");
 }
 
@@ -327,23 +327,23 @@ fn mirror_seen_directly() {
             None => (stats(get(name), &s, BLOCK), path.clone()),
             Some(m) => (stats(&masked(get(name), m), &s, BLOCK), stats(&masked(get("path"), m), &s, BLOCK)),
         };
-        let c = compare_in_family(&a, &b, family);
+        let c = Verdict::versus(&a, &b, family);
         report(
             &format!("mirror-view {name} vs path{}", if mask.is_some() { " (diffuse-first pixels)" } else { "" }),
             &c,
         );
-        if !c.passed {
+        if !c.passed() {
             failures.push(format!("{name}: {c}"));
         }
         // Negative control: a 5% bias is rejected at this budget.
-        let c = compare_in_family(&a.scaled(1.05), &b, family);
+        let c = Verdict::versus(&a.scaled(1.05), &b, family);
         report(&format!("  negative control {name} x1.05"), &c);
-        assert!(!c.passed, "{name}: a 5% bias went undetected: {c}");
+        assert!(!c.passed(), "{name}: a 5% bias went undetected: {c}");
     }
     // Light tracing over the whole image must DISAGREE (its mirror is black).
-    let c = compare_in_family(&stats(get("light"), &s, BLOCK), &path, family);
+    let c = Verdict::versus(&stats(get("light"), &s, BLOCK), &path, family);
     report("mirror-view light vs path, all pixels (must disagree)", &c);
-    assert!(!c.passed, "light tracing's black mirror went undetected: {c}");
+    assert!(!c.passed(), "light tracing's black mirror went undetected: {c}");
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
@@ -883,14 +883,14 @@ fn scale_invariance(scales: &[f32]) {
         for &k in scales {
             let s = floor_and_box(k);
             let st = stats(&passes_checked(&s, integ.as_ref(), spp, seed() + 700, &format!("{name} x{k}")), &s, BLOCK);
-            let c = compare_in_family(&st, &base, family);
+            let c = Verdict::versus(&st, &base, family);
             report(&format!("floor and box x{k:e} vs x1, {name}"), &c);
-            if !c.passed {
+            if !c.passed() {
                 failures.push(format!("{name} x{k:e}: {c}"));
             }
-            let c = compare_in_family(&st.scaled(1.05), &base, family);
+            let c = Verdict::versus(&st.scaled(1.05), &base, family);
             report(&format!("  negative control {name} x{k:e} x1.05"), &c);
-            assert!(!c.passed, "{name}: a 5% bias went undetected: {c}");
+            assert!(!c.passed(), "{name}: a 5% bias went undetected: {c}");
         }
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
