@@ -32,12 +32,11 @@ impl Sampler {
         Vec2::new(self.get1d(), self.get1d())
     }
 
-    /// 32 uniform bits, as the high half of a u64 (`AliasTable::sample`,
-    /// which needs more than the 24 of `get1d`). One draw, as `get1d` is:
-    /// the streams of every later dimension stay where they were.
+    /// 64 uniform bits (`AliasTable::sample`, which needs more than the 24
+    /// of `get1d`): two draws of the 32-bit generator.
     #[inline]
     pub fn get_bits(&mut self) -> u64 {
-        (self.rng.next_u32() as u64) << 32
+        self.rng.next_u64()
     }
 }
 
@@ -193,14 +192,14 @@ impl AliasTable {
         Some(Self { bins })
     }
 
-    /// Draw an index from uniform bits (`Sampler::get_bits`: 32 of them);
-    /// returns (index, pmf). The bin is the integer part of bits x n / 2^64
-    /// and the coin the fraction, both from one exact 128-bit product: with
-    /// 32 bits every bin is equally likely to n / 2^32 and the coin has
-    /// 32 - log2(n) bits (18 for 10^4 lights). A 24-bit float split the
-    /// same way in f32 left the coin about 24 - 2 log2(n) bits: with 10^4
-    /// lights some were drawn at 0.5x to 2.4x their pmf, with 10^5 some
-    /// never.
+    /// Draw an index from 64 uniform bits (`Sampler::get_bits`); returns
+    /// (index, pmf). The bin is the integer part of bits x n / 2^64 and the
+    /// coin the fraction, both from one exact 128-bit product: every bin is
+    /// equally likely to n / 2^64 and the coin has 64 - log2(n) bits (44
+    /// for 10^6 lights), more than the f64 it becomes keeps. A 24-bit float
+    /// split the same way in f32 left the coin about 24 - 2 log2(n) bits:
+    /// with 10^4 lights some were drawn at 0.5x to 2.4x their pmf, with
+    /// 10^5 some never; 32 bits (session 33) left 12 bits for 10^6.
     #[inline]
     pub fn sample(&self, bits: u64) -> (usize, f32) {
         let product = bits as u128 * self.bins.len() as u128;
@@ -280,15 +279,16 @@ mod tests {
         assert!(AliasTable::new(&[0.0, 0.0]).is_none());
     }
 
-    /// Many lights (one per emissive triangle): 10^4 weights over four
-    /// decades. Every bin's coin must resolve its threshold q to 1e-5 (a
+    /// Many lights (one per emissive triangle): 10^6 weights over four
+    /// decades. Every bin's coin must resolve its threshold q to 1e-7 (a
     /// draw just below q keeps the bin, one just above takes its alias), or
-    /// lights of small q are drawn off their pmf. Control: the former split
-    /// of one 24-bit float into bin and coin misses most of them (with such
-    /// a table some lights were drawn at 0.5x to 2.4x their pmf).
+    /// lights of small q are drawn off their pmf. Controls: 32 bits (the
+    /// draw of session 33) and the former split of one 24-bit float into
+    /// bin and coin (which drew some of 10^4 lights at 0.5x to 2.4x their
+    /// pmf) each miss most of them.
     #[test]
     fn alias_table_coins_resolve_small_thresholds() {
-        let n = 10_000;
+        let n = 1_000_000;
         let w: Vec<f64> = (0..n).map(|i| 10f64.powf(4.0 * i as f64 / n as f64)).collect();
         let t = AliasTable::new(&w).unwrap();
         let former = |u: f32| {
@@ -300,19 +300,23 @@ mod tests {
                 t.bins[i].alias as usize
             }
         };
-        let (mut checked, mut former_wrong) = (0, 0);
+        let (mut checked, mut bits32_wrong, mut former_wrong) = (0, 0, 0);
         for (i, bin) in t.bins.iter().enumerate().filter(|(_, b)| b.q > 1e-4 && b.q < 1.0 - 1e-4) {
-            for (coin, want) in [(bin.q as f64 - 1e-5, i), (bin.q as f64 + 1e-5, bin.alias as usize)] {
+            for (coin, want) in [(bin.q as f64 - 1e-7, i), (bin.q as f64 + 1e-7, bin.alias as usize)] {
                 let x = (i as f64 + coin) / n as f64;
-                // As `get_bits` gives them: 32 bits, the high half.
-                let bits = (x * 18_446_744_073_709_551_616.0) as u64 & !0xFFFF_FFFF;
+                let bits = (x * 18_446_744_073_709_551_616.0) as u64;
                 assert_eq!(t.sample(bits).0, want, "bin {i}, q {}", bin.q);
+                bits32_wrong += (t.sample(bits & !0xFFFF_FFFF).0 != want) as usize;
                 former_wrong += (former(x as f32) != want) as usize;
                 checked += 1;
             }
         }
         assert!(checked > n, "{checked} thresholds checked");
+        assert!(bits32_wrong > checked / 4, "control: 32 bits missed only {bits32_wrong} of {checked}");
         assert!(former_wrong > checked / 4, "control: the 24-bit split missed only {former_wrong} of {checked}");
+        // The sampler's draws carry the low half too.
+        let mut s = Sampler::new(1, 2, 3);
+        assert!((0..8).any(|_| s.get_bits() & 0xFFFF_FFFF != 0), "get_bits gives 32 bits, not 64");
     }
 
     #[test]

@@ -14,7 +14,7 @@ use prism::sampling::Sampler;
 use prism::scene::Scene;
 use prism::spectrum::{SampledSpectrum, SampledWavelengths};
 use prism::stats::{render_passes, ColourStats, Verdict};
-use scenes::{integrator, scene};
+use scenes::{integrator, scene, seed};
 
 const K: u32 = 16;
 
@@ -23,8 +23,13 @@ const K: u32 = 16;
 #[test]
 fn path_and_simple_path_agree_on_the_cornell_box() {
     let s = scene("cornell-box.json", 32, 32);
-    let a = ColourStats::from_passes(&render_passes(&s, integrator("path").as_ref(), 64, K, 10, 0), 32, 32, 8);
-    let b = ColourStats::from_passes(&render_passes(&s, integrator("simple_path").as_ref(), 512, K, 100, 0), 32, 32, 8);
+    let a = ColourStats::from_passes(&render_passes(&s, integrator("path").as_ref(), 64, K, seed(10), 0), 32, 32, 8);
+    let b = ColourStats::from_passes(
+        &render_passes(&s, integrator("simple_path").as_ref(), 512, K, seed(100), 0),
+        32,
+        32,
+        8,
+    );
     let c = Verdict::versus(&a, &b, 1);
     eprintln!("cornell path vs simple_path: {c}");
     assert!(c.passed(), "{c}");

@@ -9,7 +9,7 @@ use prism::integrators::{self, IntegratorOptions, INTEGRATORS};
 use prism::scene::Scene;
 use prism::spectrum::Spectrum;
 use prism::stats::{render_passes, ColourStats, Verdict};
-use scenes::{scene, scene_variant, srgb_of};
+use scenes::{scene, scene_variant, seed, srgb_of};
 
 const K: u32 = 16;
 const RES: u32 = 16;
@@ -20,7 +20,7 @@ fn analytic(s: &Scene, integrator: &str, spp: u32, max_depth: u32, expected: [f6
 
 fn block_stats(s: &Scene, integrator: &str, spp: u32, max_depth: u32) -> ColourStats {
     let integ = integrators::create(integrator, &IntegratorOptions { max_depth, ..Default::default() }).unwrap();
-    ColourStats::from_passes(&render_passes(s, integ.as_ref(), spp, K, 3, 0), RES, RES, 8)
+    ColourStats::from_passes(&render_passes(s, integ.as_ref(), spp, K, seed(3), 0), RES, RES, 8)
 }
 
 /// Samples per pixel that give each estimator enough power in a white room.
@@ -56,7 +56,8 @@ fn white_room_negative_controls() {
     for i in INTEGRATORS {
         let s = scene("white-room.json", RES, RES);
         let integ = integrators::create(i.name, &IntegratorOptions::default()).unwrap();
-        let stats = ColourStats::from_passes(&render_passes(&s, integ.as_ref(), spp_for(i.name), K, 3, 0), RES, RES, 8);
+        let stats =
+            ColourStats::from_passes(&render_passes(&s, integ.as_ref(), spp_for(i.name), K, seed(3), 0), RES, RES, 8);
         let c = Verdict::versus_value(&stats.scaled(1.02), room_value(0.8), 1);
         eprintln!("white room x1.02 {}: {c}", i.name);
         assert!(!c.passed(), "{}: a 2% bias passed: {c}", i.name);
