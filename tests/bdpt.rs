@@ -119,10 +119,13 @@ fn uniform_and_balance_mis_are_unbiased() {
         .collect();
     let mut mse = Vec::new();
     for mis in [MisHeuristic::Uniform, MisHeuristic::Balance, MisHeuristic::Power] {
-        let passes = render_passes(&s, bdpt(mis).as_ref(), 32, K, seed(300), 0);
+        // The uniform weights are 22x noisier than the balance heuristic's:
+        // at 32 spp its x1.02 control passed at one seed offset in three.
+        let spp = if mis == MisHeuristic::Uniform { 128 } else { 32 };
+        let passes = render_passes(&s, bdpt(mis).as_ref(), spp, K, seed(300), 0);
         let stats = stats(&passes, 16);
         let m = passes.iter().map(|p| rel_mse(p, &reference)).sum::<f64>() / passes.len() as f64;
-        mse.push((mis, m));
+        mse.push((mis, spp, m));
         if mis == MisHeuristic::Power {
             continue;
         }
@@ -133,8 +136,8 @@ fn uniform_and_balance_mis_are_unbiased() {
         eprintln!("negative control ({mis:?} x1.02): {v}");
         assert!(!v.passed(), "{mis:?}: a 2% bias went undetected: {v}");
     }
-    for (mis, m) in mse {
-        eprintln!("relMSE of one 32 spp pass vs the path reference, --mis {mis:?}: {m:.4e}");
+    for (mis, spp, m) in mse {
+        eprintln!("relMSE of one {spp} spp pass vs the path reference, --mis {mis:?}: {m:.4e}");
     }
 }
 

@@ -23,9 +23,9 @@ const K: u32 = 16;
 #[test]
 fn path_and_simple_path_agree_on_the_cornell_box() {
     let s = scene("cornell-box.json", 32, 32);
-    let a = ColourStats::from_passes(&render_passes(&s, integrator("path").as_ref(), 64, K, seed(10), 0), 32, 32, 8);
+    let a = ColourStats::from_passes(&render_passes(&s, integrator("path").as_ref(), 256, K, seed(10), 0), 32, 32, 8);
     let b = ColourStats::from_passes(
-        &render_passes(&s, integrator("simple_path").as_ref(), 512, K, seed(100), 0),
+        &render_passes(&s, integrator("simple_path").as_ref(), 2048, K, seed(100), 0),
         32,
         32,
         8,
