@@ -196,7 +196,7 @@ impl AliasTable {
     /// (index, pmf). The bin is the integer part of bits x n / 2^64 and the
     /// coin the fraction, both from one exact 128-bit product: every bin is
     /// equally likely to n / 2^64 and the coin has 64 - log2(n) bits (44
-    /// for 10^6 lights), more than the f64 it becomes keeps. A 24-bit float
+    /// for 10^6 lights), finer than the f32 threshold q. A 24-bit float
     /// split the same way in f32 left the coin about 24 - 2 log2(n) bits:
     /// with 10^4 lights some were drawn at 0.5x to 2.4x their pmf, with
     /// 10^5 some never; 32 bits (session 33) left 12 bits for 10^6.

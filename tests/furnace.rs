@@ -23,6 +23,9 @@
 //! be rejected, so each case has the power to see a 2% bias. The colour rule
 //! is `prism::stats::Verdict`'s; the Bonferroni family spans the whole test.
 
+// The BSDF helpers and the scene helpers each mount tests/common/seeds.rs.
+#![allow(clippy::duplicate_mod)]
+
 mod common;
 #[path = "common/scenes.rs"]
 mod scenes;

@@ -5,6 +5,9 @@
 //! Seeds are fixed; set PRISM_TEST_SEED to run the statistical tests with
 //! another one.
 
+#[path = "common/seeds.rs"]
+mod seeds;
+
 use glam::Vec3;
 use prism::spectrum::*;
 use rand_xoshiro::rand_core::{Rng, SeedableRng};
@@ -31,7 +34,7 @@ fn max_abs_diff(a: [f32; 3], b: [f32; 3]) -> f32 {
 }
 
 fn seed(default: u64) -> u64 {
-    std::env::var("PRISM_TEST_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(default)
+    seeds::from_env("PRISM_TEST_SEED", default)
 }
 
 /// Uniform in [0, 1) from the top 24 bits.

@@ -46,7 +46,7 @@ use std::process::Command;
 const K: u32 = 16;
 
 fn seed() -> u64 {
-    std::env::var("PRISM_TEST_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(0x57AB)
+    scenes::seeds::from_env("PRISM_TEST_SEED", 0x57AB)
 }
 
 fn all_integrators() -> Vec<(&'static str, Box<dyn Integrator>)> {

@@ -6,6 +6,7 @@
 
 pub mod albedo;
 pub mod chi2;
+pub mod seeds;
 
 use glam::{Vec2, Vec3A};
 use prism::materials::{Bsdf, BsdfSample, Conductor, Dielectric, Diffuse, Mirror, TransportMode};
@@ -14,7 +15,7 @@ use prism::spectrum::{SampledSpectrum, SampledWavelengths, Spectrum};
 /// The seed of every statistical test; override with PRISM_TEST_SEED to check
 /// that the tests pass for other seeds too (VALIDATION.md §1).
 pub fn seed() -> u64 {
-    std::env::var("PRISM_TEST_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(0x5EED_B5DF)
+    seeds::from_env("PRISM_TEST_SEED", 0x5EED_B5DF)
 }
 
 /// Four fixed wavelengths (hero ~ 556 nm).

@@ -9,6 +9,9 @@ use prism::spectrum::{spectrum_to_xyz, xyz_to_linear_srgb, Spectrum};
 use prism::stats::{ColourStats, Image, Verdict};
 use std::path::{Path, PathBuf};
 
+#[path = "seeds.rs"]
+pub mod seeds;
+
 /// A fresh, empty directory `prism-<name>-<pid>` for one test's files,
 /// under Cargo's directory for integration tests' temporary files.
 pub fn temp_dir(name: &str) -> PathBuf {
@@ -55,8 +58,7 @@ pub fn srgb_of(s: &Spectrum) -> [f64; 3] {
 /// Base seed `base`, shifted by 1000 x $PRISM_SEED_OFFSET (default 0): the
 /// tests use fixed seeds, and must pass for any other.
 pub fn seed(base: u64) -> u64 {
-    let offset: u64 = std::env::var("PRISM_SEED_OFFSET").ok().and_then(|v| v.parse().ok()).unwrap_or(0);
-    base + 1000 * offset
+    base + 1000 * seeds::from_env("PRISM_SEED_OFFSET", 0)
 }
 
 /// Block statistics (sRGB and luminance, see `prism::stats::Verdict`) of
