@@ -21,6 +21,10 @@ const BLOCK: u32 = 8;
 /// Samples per pixel per pass for each estimator, sized for ~equal noise.
 fn spp_for(scene: &str, integrator: &str) -> u32 {
     match (scene, integrator) {
+        // On the box the controls need more (at 256 its x1.02 control
+        // passed at seed offset 4: p 1.2e-3); on the glossy box 1024 spp
+        // met a rare bright path at that offset (z 7.3) that 256 did not.
+        ("cornell-box.json", "simple_path") => 1024,
         (_, "simple_path") => 256,
         // Rare bright paths: light tracing's splats from the rough glass
         // in view, and the glossy box's blue at the top right, which only
@@ -195,10 +199,12 @@ fn a_two_sided_emitter_agrees_across_integrators() {
         let integ = integrators::create(name, &IntegratorOptions::default()).unwrap();
         ColourStats::from_passes(&render_passes(s, integ.as_ref(), spp, K, seed(base), 0), RES, RES, BLOCK)
     };
-    let simple = stats(&two, "simple_path", 256, 60);
+    // (At a quarter of these samples bdpt's x1.02 control passed at seed
+    // offset 5: p 1.1e-3.)
+    let simple = stats(&two, "simple_path", 1024, 60);
     let mut failures = Vec::new();
     let [.., bdpt] = ["path", "light", "bdpt"].map(|name| {
-        let st = stats(&two, name, 32, 61);
+        let st = stats(&two, name, 128, 61);
         let c = Verdict::versus(&st, &simple, 3);
         eprintln!("two-sided emitter: {name} vs simple_path: {c}");
         if !c.passed() {
@@ -206,7 +212,7 @@ fn a_two_sided_emitter_agrees_across_integrators() {
         }
         st
     });
-    for (what, control) in [("one-sided", stats(&one, "path", 32, 62)), ("bdpt x1.02", bdpt.scaled(1.02))] {
+    for (what, control) in [("one-sided", stats(&one, "path", 128, 62)), ("bdpt x1.02", bdpt.scaled(1.02))] {
         let c = Verdict::versus(&control, &simple, 3);
         eprintln!("two-sided emitter: {what} vs simple_path (control): {c}");
         if c.passed() {
