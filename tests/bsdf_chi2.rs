@@ -211,7 +211,8 @@ fn chi2_dielectric_wo_grazing_inside() {
 }
 
 /// The same routine at the same corrected significance must reject a pdf that
-/// is 5% off in one lobe, and pdfs of a slightly wrong shape.
+/// is 5% off in one lobe, pdfs of a slightly wrong shape, and a pdf of 0
+/// where the sampler goes.
 #[test]
 fn chi2_negative_controls() {
     let alpha = corrected_alpha();
@@ -242,6 +243,10 @@ fn chi2_negative_controls() {
     let wrong =
         |wi: Vec3A| if wi.z > 0.0 { (n + 1.0) / (2.0 * std::f64::consts::PI) * (wi.z as f64).powf(n) } else { 0.0 };
     rows.push(("NEG diffuse pdf cos^1.1".into(), run_with_pdf(&lambert, &wrong)));
+    // A pdf of 0 where samples land: the cells found empty are looked at
+    // again with the fine cubature, which must still find them empty.
+    let wrong = |wi: Vec3A| if wi.z > 0.0 && wi.x < 0.5 { wi.z as f64 / std::f64::consts::PI } else { 0.0 };
+    rows.push(("NEG diffuse pdf 0 where x > 0.5".into(), run_with_pdf(&lambert, &wrong)));
     let accepted: Vec<&String> =
         rows.iter().filter(|(name, o)| !report(name, o, 0.0, alpha)).map(|(name, _)| name).collect();
     assert!(accepted.is_empty(), "negative controls NOT rejected: {accepted:?}");
