@@ -186,8 +186,9 @@ pub const ALPHA: f64 = 0.001;
 
 /// Compares block statistics `a` with `b`, z = (m_a - m_b) / sqrt(s_a^2 +
 /// s_b^2), as one of `family` comparisons made together (a test matrix):
-/// the Bonferroni correction then spans all of them, so the whole family
-/// falsely fails with probability at most ALPHA. Private: the chi-square
+/// the Bonferroni correction then spans all of them, so each of its two
+/// tests (worst z, chi-square) falsely fails the whole family with
+/// probability at most ALPHA. Private: the chi-square
 /// part holds only for independent comparisons, so tests compare colours
 /// through `Verdict`.
 fn compare_in_family(a: &BlockStats, b: &BlockStats, family: usize) -> Comparison {
@@ -426,7 +427,9 @@ pub fn luminance(p: [f64; 3]) -> f64 {
 /// correlated, which widens their chi-square beyond chi-square(n) (false
 /// alarms at the percent level). So the full rule (worst |z| and
 /// chi-square) is applied to luminance, one statistic per block, and the
-/// worst-|z| rule to each sRGB channel.
+/// worst-|z| rule to each sRGB channel. Three tests at ALPHA each: a family
+/// of agreeing estimates fails with probability at most 3 ALPHA (less, the
+/// two worst-z tests being correlated).
 #[derive(Clone, Debug)]
 pub struct Verdict {
     pub rgb: Comparison,

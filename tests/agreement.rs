@@ -18,7 +18,8 @@ const K: u32 = 16;
 const RES: u32 = 32;
 const BLOCK: u32 = 8;
 
-/// Samples per pixel per pass for each estimator, sized for ~equal noise.
+/// Samples per pixel per pass for each estimator: sized for ~equal noise,
+/// and more where the controls need power or rare bright paths samples.
 fn spp_for(scene: &str, integrator: &str) -> u32 {
     match (scene, integrator) {
         // On the box the controls need more (at 256 its x1.02 control
