@@ -182,6 +182,16 @@ impl Camera {
         if self.raster_of_direction(d).is_none() {
             return 0.0;
         }
+        self.pdf_dir(d)
+    }
+
+    /// The density of a ray this camera generated (`generate_ray`), with no
+    /// test of its raster position: a raster on the image's edge (in f32,
+    /// the last column's x = w - 1 + u rounds to w for u within 2^-17 of 1
+    /// at w = 256) projects back a rounding outside the image, where
+    /// `pdf_we_dir` is 0, about as often as inside.
+    #[inline]
+    pub fn pdf_dir(&self, d: Vec3A) -> f32 {
         let c = d.dot(self.forward);
         1.0 / (self.image_area() * c * c * c)
     }

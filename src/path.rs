@@ -369,7 +369,7 @@ pub fn camera_subpath(
     let ray = scene.camera.generate_ray(raster);
     // beta = We cos / (pdf_pos pdf_dir) = 1 for a pixel's box filter (camera.rs).
     path.push(Vertex::camera(scene, SampledSpectrum::ONE));
-    let pdf_dir = scene.camera.pdf_we_dir(ray.d);
+    let pdf_dir = scene.camera.pdf_dir(ray.d);
     random_walk::<true>(
         scene,
         ray,
