@@ -424,7 +424,8 @@ fn a_rendered_reference_is_accepted() {
 /// `render.max_depth`, else the default 1024; it recorded none, and used
 /// the default whatever the scene said): a run at another depth is told
 /// that it estimates another image, and does not take the reference's
-/// noise from its own line of the "same" estimator.
+/// noise from its own line of the "same" estimator; nor does a run whose
+/// reference predates the field.
 #[test]
 fn a_stored_reference_records_its_depth() {
     let d = temp_dir("ref-depth");
@@ -458,13 +459,28 @@ fn a_stored_reference_records_its_depth() {
     let (depth, other_depth, floor) = method(&cfg);
     assert_eq!((depth, other_depth), (Some(1024), true));
     assert_eq!(floor, "block errors");
+
+    // A sidecar from before the field: the depth is unknown (it was read
+    // as 1024, which a converge-made reference need not have used), the
+    // run says so and takes no noise from its own line.
+    let sidecar = d.join("ref.json");
+    let mut json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&sidecar).unwrap()).unwrap();
+    json.as_object_mut().unwrap().remove("max_depth").expect("the sidecar records its depth");
+    std::fs::write(&sidecar, json.to_string()).unwrap();
+    cfg.max_depth = None;
+    let r = run(&cfg).unwrap();
+    assert_eq!(r.reference.max_depth, None);
+    assert!(r.notes.iter().any(|n| n.contains("does not record its max depth")), "{:?}", r.notes);
+    assert_eq!(r.reference.noise_floor_method.as_deref(), Some("block errors"));
     std::fs::remove_dir_all(&d).unwrap();
 }
 
 /// A run whose every checkpoint has relMSE 0 (a black furnace against its
 /// black reference) draws no slope -1 guide: there is no error for it to
 /// go through (from an audit: ln 0 put it along the chart's bottom edge,
-/// legend and all, for every line of the run).
+/// legend and all, for every line of the run). Its efficiency is unbounded:
+/// it is not ranked, a note says why, and the report shows no inf or NaN
+/// (it showed efficiency inf and "vs best" NaN).
 #[test]
 fn an_exact_run_draws_no_slope_guide() {
     let d = temp_dir("exact-run");
@@ -479,6 +495,11 @@ fn an_exact_run_draws_no_slope_guide() {
     assert!(r.integrators[0].checkpoints.iter().all(|c| c.rel_mse == 0.0), "not an exact run");
     let svg = std::fs::read_to_string(d.join("o/error-vs-spp.svg")).unwrap();
     assert!(!svg.contains("slope -1"), "a slope guide with no error to go through");
+    assert!(r.integrators[0].efficiency.is_nan(), "an exact run ranked: efficiency {}", r.integrators[0].efficiency);
+    assert!(r.notes.iter().any(|n| n.contains("relMSE is 0")), "{:?}", r.notes);
+    let report = std::fs::read_to_string(d.join("o/report.md")).unwrap();
+    let words = report.split(|c: char| !c.is_alphanumeric()).map(str::to_lowercase).collect::<Vec<_>>();
+    assert!(!words.iter().any(|w| w == "inf" || w == "nan"), "{report}");
     std::fs::remove_dir_all(&d).unwrap();
 }
 

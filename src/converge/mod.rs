@@ -642,7 +642,13 @@ fn dropped_note(x: &IntegratorResult) -> Option<String> {
 /// reference whose own noise is a large part of the measured error.
 fn result_notes(cfg: &ConvergeConfig, x: &IntegratorResult, info: &ReferenceInfo) -> Vec<String> {
     let mut notes = Vec::new();
-    if x.efficiency.is_nan() {
+    if x.rel_mse == 0.0 {
+        notes.push(format!(
+            "{}: relMSE is 0, the image equals the reference: its efficiency 1/(relMSE x s) is \
+             unbounded: not ranked",
+            x.label
+        ));
+    } else if x.efficiency.is_nan() {
         notes.push(format!(
             "{}: {:.3} {} is below {} s, too short to measure (the CPU clock ticks every 10 ms): not \
              ranked; give a larger --time or --spp",
@@ -817,9 +823,10 @@ fn null_as_nan<'de, D: serde::Deserializer<'de>>(d: D) -> std::result::Result<f6
 }
 
 /// 1 / (relMSE x seconds), NaN (unranked) for a time the clock cannot
-/// measure well (`Clock::min_seconds`).
+/// measure well (`Clock::min_seconds`) and for relMSE 0 (an exact image:
+/// infinite efficiency, which no ratio or ranking can use).
 fn efficiency(rel_mse: f64, seconds: f64, clock: Clock) -> f64 {
-    if seconds >= clock.min_seconds() {
+    if seconds >= clock.min_seconds() && rel_mse > 0.0 {
         1.0 / (rel_mse * seconds)
     } else {
         f64::NAN
