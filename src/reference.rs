@@ -5,7 +5,7 @@
 //! wall time). Made by `prism reference`; read by tests/agreement.rs.
 
 use crate::film::{read_exr, DroppedSamples, Film, Outputs};
-use crate::integrators::{Integrator, IntegratorOptions};
+use crate::integrators::Integrator;
 use crate::render::RenderOptions;
 use crate::scene::Scene;
 use crate::stats::{luminance, pixel_mean_variance, render_pass_films, BlockStats, ColourStats};
@@ -19,10 +19,11 @@ use std::time::Instant;
 pub struct ReferenceMeta {
     pub scene: String,
     pub integrator: String,
-    /// The path depth it rendered with (absent in references made before
-    /// it was recorded, which all used the default).
-    #[serde(default = "default_max_depth")]
-    pub max_depth: u32,
+    /// The path depth it rendered with; None in references made before it
+    /// was recorded: `prism reference` then used the default depth, but
+    /// `prism converge` the run's, so the sidecar cannot tell which.
+    #[serde(default)]
+    pub max_depth: Option<u32>,
     pub spp: u32,
     pub passes: u32,
     pub seed: u64,
@@ -48,10 +49,6 @@ pub struct ReferenceMeta {
     /// Absent in references made before it was recorded.
     #[serde(default)]
     pub block_y_stderr: Vec<f64>,
-}
-
-fn default_max_depth() -> u32 {
-    IntegratorOptions::default().max_depth
 }
 
 impl ReferenceMeta {
@@ -109,7 +106,7 @@ pub fn make_reference(
     let meta = ReferenceMeta {
         scene: scene_name.to_string(),
         integrator: integrator_name.to_string(),
-        max_depth,
+        max_depth: Some(max_depth),
         spp,
         passes,
         seed,

@@ -153,11 +153,15 @@ fn origin_notes(
             d.negative
         ));
     }
-    if m.max_depth != max_depth {
-        notes.push(format!(
-            "the reference was rendered with max depth {}, this run uses {max_depth}: they estimate different images",
-            m.max_depth
-        ));
+    match m.max_depth {
+        Some(d) if d != max_depth => notes.push(format!(
+            "the reference was rendered with max depth {d}, this run uses {max_depth}: they estimate different images"
+        )),
+        Some(_) => {}
+        None => notes.push(format!(
+            "the reference's sidecar does not record its max depth (it predates the field): if it is not this \
+             run's {max_depth}, they estimate different images"
+        )),
     }
     // The run renders samples 0..spp of seed `seed` (the sampler is keyed
     // by seed, pixel and sample index; a run to a time may reach any
@@ -185,7 +189,7 @@ fn reference_info(path: &Path, here: bool, origin: Option<&Origin>) -> Reference
         passes: origin.and_then(|m| m.passes),
         seed: origin.map(|m| m.seed),
         mis: origin.map(|m| m.mis.clone()),
-        max_depth: origin.map(|m| m.max_depth),
+        max_depth: origin.and_then(|m| m.max_depth),
         wall_seconds: origin.and_then(|m| m.wall_seconds),
         noise_floor,
         noise_floor_method: noise_floor.map(|_| "block errors".to_string()),
@@ -207,7 +211,8 @@ struct Origin {
     passes: Option<u32>,
     /// Its MIS heuristic, as its integrator records it.
     mis: String,
-    max_depth: u32,
+    /// None: not recorded (`ReferenceMeta::max_depth`).
+    max_depth: Option<u32>,
     /// The first sample index it rendered (a part or a merge of parts may
     /// start later): a run of n samples shares one iff this is below n.
     first_sample: u32,
@@ -266,7 +271,7 @@ impl Origin {
             spp: r.spp * r.passes.unwrap_or(1) as u64,
             passes: r.passes,
             mis: r.mis,
-            max_depth: r.max_depth,
+            max_depth: Some(r.max_depth),
             first_sample: r.sample_ranges.first().map_or(0, |r| r[0]),
             // (A render's sidecar times only its last process, if it was
             // resumed, and a merge's none: the reference's cost is unknown.)
