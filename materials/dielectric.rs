@@ -34,7 +34,7 @@
 //! | alpha_x   | float                   | -       | anisotropic GGX alpha along x (with alpha_y)             |
 //! | alpha_y   | float                   | -       | anisotropic GGX alpha along y (with alpha_x)             |
 
-use super::fresnel::{fr_dielectric, reflect, refract};
+use super::fresnel::{fr_dielectric, fr_dielectric_refracted, reflect, refract};
 use super::microfacet::{refraction_jacobian, TrowbridgeReitz};
 use super::{BsdfFlags, BsdfSample, TransportMode};
 use crate::spectrum::{SampledSpectrum, SampledWavelengths, Spectrum};
@@ -57,6 +57,21 @@ struct HalfVector {
     /// reflection).
     etap: f32,
     reflect: bool,
+}
+
+impl HalfVector {
+    /// R(wo.wm): for a refraction from wi's own cosine to the microfacet
+    /// (`fr_dielectric_refracted`: exact near the critical angle, where
+    /// Snell's law in f32 is not), for a reflection by Snell's law. eval,
+    /// pdf and sample all take it from here, so they agree exactly.
+    #[inline]
+    fn fresnel(&self, wo: Vec3A, wi: Vec3A, eta: f32) -> f32 {
+        if self.reflect {
+            fr_dielectric(wo.dot(self.wm), eta)
+        } else {
+            fr_dielectric_refracted(wo.dot(self.wm), wi.dot(self.wm), eta)
+        }
+    }
 }
 
 impl Dielectric {
@@ -92,10 +107,7 @@ impl Dielectric {
             return SampledSpectrum::ZERO;
         }
         match half_vector(wo, wi, eta) {
-            Some(h) => {
-                let r = fr_dielectric(wo.dot(h.wm), eta);
-                self.spectral(self.f_rough(wo, wi, h, r, mode))
-            }
+            Some(h) => self.spectral(self.f_rough(wo, wi, h, h.fresnel(wo, wi, eta), mode)),
             None => SampledSpectrum::ZERO,
         }
     }
@@ -124,7 +136,7 @@ impl Dielectric {
             return 0.0;
         }
         match half_vector(wo, wi, eta) {
-            Some(h) => self.pdf_rough(wo, wi, h, fr_dielectric(wo.dot(h.wm), eta)),
+            Some(h) => self.pdf_rough(wo, wi, h, h.fresnel(wo, wi, eta)),
             None => 0.0,
         }
     }
@@ -176,7 +188,7 @@ impl Dielectric {
         if h.reflect != flags.is_reflection() {
             return None;
         }
-        let r = fr_dielectric(wo.dot(h.wm), eta);
+        let r = h.fresnel(wo, wi, eta);
         let pdf = self.pdf_rough(wo, wi, h, r);
         if pdf.is_nan() || pdf <= 0.0 {
             return None;
