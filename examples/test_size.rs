@@ -1,0 +1,111 @@
+//! The size of the colour rule (`stats::Verdict`, VALIDATION.md §1) for one
+//! estimator on one scene: how often it fails an estimate that is right
+//! (docs/validation.md, "The size of the rule, by bootstrap").
+//!
+//!   cargo run --release --example test_size -- SCENE INTEGRATOR SPP [PASSES [K]]
+//!
+//! Renders PASSES (default 1024) passes of SPP samples at the agreement
+//! matrix's 32 x 32 with its 8 x 8 blocks, takes their mean as the exact
+//! image, and draws K (default 16, the suite's) of the passes with
+//! replacement, TRIALS times:
+//! each draw is one test as the suite makes it, against the exact image.
+//! The fraction of draws that fail, at the family sizes 1 and 10 (the
+//! agreement matrix's: 4 integrators and the reference), is the rule's
+//! size for this estimator, against the ~3 x 1e-3 and ~3 x 1e-4 it should
+//! not exceed. The bootstrap keeps what the normal theory assumes away:
+//! skewed pass means (rare bright paths) and blocks that move together
+//! (light tracing's and BDPT's splats). It cannot draw a pass rarer than
+//! the PASSES it has, so it reads heavy tails low.
+
+use prism::integrators::{self, IntegratorOptions};
+use prism::sampling::Sampler;
+use prism::scene::load_scene;
+use prism::stats::{luminance, render_passes, ColourStats, Image, Verdict, ALPHA};
+use rayon::prelude::*;
+use std::path::Path;
+
+const RES: u32 = 32;
+const BLOCK: u32 = 8;
+const TRIALS: u32 = 200_000;
+const CHUNK: u32 = 1000;
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let [scene, integrator, spp, rest @ ..] = &args[..] else {
+        panic!("usage: test_size SCENE INTEGRATOR SPP [PASSES [K]]");
+    };
+    let spp: u32 = spp.parse().expect("SPP");
+    let passes: u32 = rest.first().map_or(1024, |p| p.parse().expect("PASSES"));
+    let k: usize = rest.get(1).map_or(16, |k| k.parse().expect("K"));
+    let mut b = load_scene(Path::new(scene)).unwrap_or_else(|e| panic!("{e}"));
+    b.set_resolution(RES, RES).unwrap();
+    let scene_built = b.build();
+    let estimator = integrators::create(integrator, &IntegratorOptions::default()).unwrap();
+    let images = render_passes(&scene_built, estimator.as_ref(), spp, passes, 1 << 40, 0);
+    let exact = ColourStats::from_passes(&images, RES, RES, BLOCK).rgb.mean;
+    println!("{scene} {integrator} {spp} spp, {passes} passes, tests of {k}:");
+    block_correlation(&images);
+    // Chunks of draws in parallel, each from its own stream.
+    let failed = (0..TRIALS / CHUNK)
+        .into_par_iter()
+        .map(|chunk| {
+            let mut sampler = Sampler::new(35, chunk as u64, 0);
+            let mut failed = [[0u32; 3]; 2];
+            for _ in 0..CHUNK {
+                let draw: Vec<Image> =
+                    (0..k).map(|_| images[(sampler.get_bits() % passes as u64) as usize].clone()).collect();
+                let stats = ColourStats::from_passes(&draw, RES, RES, BLOCK);
+                for (f, family) in [1, 10].into_iter().enumerate() {
+                    let v = Verdict::versus_values(&stats, &exact, family);
+                    failed[f][0] += !v.passed() as u32;
+                    failed[f][1] += (v.y.chi2_p < ALPHA / family as f64) as u32;
+                    failed[f][2] += (v.y.worst_z > v.y.threshold || v.rgb.worst_z > v.rgb.threshold) as u32;
+                }
+            }
+            failed
+        })
+        .reduce(|| [[0; 3]; 2], |a, b| std::array::from_fn(|f| std::array::from_fn(|i| a[f][i] + b[f][i])));
+    for (f, family) in [1, 10].into_iter().enumerate() {
+        let rate = |n: u32| format!("{:.1e} ({n})", n as f64 / TRIALS as f64);
+        println!(
+            "  family {family:>2}: Verdict fails {} of {TRIALS}; by the Y chi-square {}, by a worst z {}",
+            rate(failed[f][0]),
+            rate(failed[f][1]),
+            rate(failed[f][2])
+        );
+    }
+}
+
+/// Correlation across passes of the blocks' luminance: the pairs beyond
+/// 0.5 and tr(R^2) / n, the factor by which it widens the chi-square's
+/// variance (2 tr(R^2) for Gaussian z; 1 for independent blocks), less
+/// the n (n - 1) / (P - 1) that P passes give uncorrelated blocks.
+fn block_correlation(images: &[Image]) {
+    let n = ((RES / BLOCK) * (RES / BLOCK)) as usize;
+    let y: Vec<Vec<f64>> = images
+        .iter()
+        .map(|img| {
+            let mut v = vec![0.0; n];
+            for (i, p) in img.iter().enumerate() {
+                let (x, row) = (i as u32 % RES, i as u32 / RES);
+                v[((row / BLOCK) * (RES / BLOCK) + x / BLOCK) as usize] += luminance(p.map(f64::from));
+            }
+            v
+        })
+        .collect();
+    let p = y.len() as f64;
+    let mean: Vec<f64> = (0..n).map(|b| y.iter().map(|v| v[b]).sum::<f64>() / p).collect();
+    let cov = |a: usize, b: usize| y.iter().map(|v| (v[a] - mean[a]) * (v[b] - mean[b])).sum::<f64>() / (p - 1.0);
+    let mut sum_r2 = 0.0;
+    for a in 0..n {
+        for b in a + 1..n {
+            let r = cov(a, b) / (cov(a, a) * cov(b, b)).sqrt();
+            sum_r2 += 2.0 * r * r;
+            if r.abs() > 0.5 {
+                println!("  blocks {a} and {b} (row-major, {} per row): correlation {r:.2}", RES / BLOCK);
+            }
+        }
+    }
+    let null = (n * (n - 1)) as f64 / (p - 1.0);
+    println!("  tr(R^2) / n = {:.3}", 1.0 + (sum_r2 - null) / n as f64);
+}
