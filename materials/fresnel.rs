@@ -5,7 +5,9 @@
 //! microfacet BSDFs share these functions so that each law is written once.
 //!
 //! - `fr_dielectric`: exact unpolarised reflectance between two dielectrics
-//!   (Born & Wolf, "Principles of Optics", §1.5.2; pbrt-v4 §9.3.2 `FrDielectric`).
+//!   (Born & Wolf, "Principles of Optics", §1.5.2; pbrt-v4 §9.3.2 `FrDielectric`);
+//!   `fr_dielectric_refracted` the same for a refraction whose transmitted
+//!   cosine is known, which is exact near the critical angle.
 //! - `fr_conductor`: exact unpolarised reflectance of a conductor with complex
 //!   index eta + i k, evaluated per wavelength on four lanes at once. It uses the
 //!   real-arithmetic form of the complex Fresnel equations (Born & Wolf §14.2;
