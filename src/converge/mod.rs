@@ -30,7 +30,8 @@
 //! between integrators on a machine shared with other jobs, where wall time
 //! depends on what else happened to run at the same moment. A run shorter
 //! than ten ticks of its clock (`Clock::min_seconds`: 0.1 CPU seconds) gets
-//! no efficiency and no rank, and a note says so.
+//! no efficiency and no rank, and a note says so; so does a run whose
+//! relMSE is 0 (its image equals the reference: the efficiency is unbounded).
 //!
 //! Notes (in report.md and results.json, and printed) also flag a reference
 //! whose own noise is over 10 % of an integrator's measured relMSE (the
