@@ -62,8 +62,10 @@ struct HalfVector {
 impl HalfVector {
     /// R(wo.wm): for a refraction from wi's own cosine to the microfacet
     /// (`fr_dielectric_refracted`: exact near the critical angle, where
-    /// Snell's law in f32 is not), for a reflection by Snell's law. eval,
-    /// pdf and sample all take it from here, so they agree exactly.
+    /// Snell's law in f32 is not), for a reflection by Snell's law. eval and
+    /// pdf, and the f and pdf that sample returns, take it from here, so they
+    /// agree exactly; sample's choice of lobe, made before wi exists, uses
+    /// Snell's law at the sampled normal.
     #[inline]
     fn fresnel(&self, wo: Vec3A, wi: Vec3A, eta: f32) -> f32 {
         if self.reflect {

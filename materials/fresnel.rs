@@ -45,7 +45,7 @@ pub fn fr_dielectric(cos_theta_i: f32, eta: f32) -> f32 {
 /// (a rough dielectric's f and pdf for a given pair): `cos_t` is its cosine
 /// to the normal, by which the reflectance needs no Snell's law. Near the
 /// critical angle Snell's cos_t^2 = (cos_i^2 + eta^2 - 1) / eta^2 is a
-/// difference of nearly equal numbers: an ulp of cos_i^2 is ~5e-8, and at
+/// difference of nearly equal numbers: an ulp of cos_i^2 is ~6e-8, and at
 /// cos_t = 1e-3 (cos_t^2 = 1e-6) T = 1 - R, proportional to cos_t, was 13 %
 /// off in f32; the direction gives cos_t to its own precision.
 #[inline]

@@ -176,7 +176,9 @@ impl Camera {
     }
 
     /// Directional density of primary rays (solid angle): 1 / (A cos^3 theta),
-    /// 0 outside the image. The positional density is a delta (pinhole).
+    /// 0 outside the image, for a direction the camera did not generate (a
+    /// connection to it); for its own rays, `pdf_dir`. The positional
+    /// density is a delta (pinhole).
     #[inline]
     pub fn pdf_we_dir(&self, d: Vec3A) -> f32 {
         if self.raster_of_direction(d).is_none() {
@@ -188,8 +190,8 @@ impl Camera {
     /// The density of a ray this camera generated (`generate_ray`), with no
     /// test of its raster position: a raster on the image's edge (in f32,
     /// the last column's x = w - 1 + u rounds to w for u within 2^-17 of 1
-    /// at w = 256) projects back a rounding outside the image, where
-    /// `pdf_we_dir` is 0, about as often as inside.
+    /// at w = 256) projects back a rounding outside the image about half the
+    /// time, where `pdf_we_dir` is 0.
     #[inline]
     pub fn pdf_dir(&self, d: Vec3A) -> f32 {
         let c = d.dot(self.forward);

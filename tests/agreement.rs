@@ -31,10 +31,12 @@ fn spp_for(scene: &str, integrator: &str) -> u32 {
         // them: light tracing's splats from the rough glass in view, the
         // glossy box's blue at the top right, which only BSDF sampling
         // finds, and the dispersive caustic's single wavelengths. These
-        // keep each comparison's false failures (measured by bootstrap,
-        // `examples/test_size.rs`) within twice the rule's bound, where
-        // 32 spp (128 for path and light on the glossy box) were 3 to 13
-        // times over it (docs/validation.md, "The size of the rule").
+        // keep each estimator's false failures against exact values (by
+        // bootstrap, `examples/test_size.rs`, a proxy for the pairwise
+        // comparisons) within 2.7 times the rule's bound at the matrix's
+        // family of 10, where 32 spp (128 for path and light on the
+        // glossy box) were up to 13 times over it (docs/validation.md,
+        // "The size of the rule").
         ("cornell-glossy.json", "path" | "light") => 512,
         ("cornell-glossy.json", "bdpt") | ("cornell-dispersion.json", _) => 128,
         _ => 32,

@@ -445,11 +445,15 @@ fn tiny_lights_on_glossy_plates_agree_where_combined() {
     }
     passes_checked(&s, integrator("simple_path").as_ref(), 64, seed() + 500, "veach-mis simple_path");
     let path = passes_checked(&s, integrator("path").as_ref(), 256, seed() + 600, "veach-mis path");
-    // (label, estimator, spp, the pixels compared: None for all)
+    // (label, estimator, spp, the pixels compared: None for all). Uniform
+    // weights give strategies that find the tiny lights rarely their full
+    // share, so their pass means are heavy-tailed: at 256 spp the uniform
+    // heuristic failed against path at PRISM_TEST_SEED 31676 and 110866
+    // (sRGB z 9.7 and 8.1), 2 seeds of the 15 of sessions 34-35.
     let others: [Run; 4] = [
         ("bdpt", integrator("bdpt"), 128, None),
         ("bdpt --mis balance", bdpt(MisHeuristic::Balance), 128, None),
-        ("bdpt --mis uniform", bdpt(MisHeuristic::Uniform), 256, None),
+        ("bdpt --mis uniform", bdpt(MisHeuristic::Uniform), 1024, None),
         ("light", integrator("light"), 256, Some(&backdrop)),
     ];
     let family = others.len();

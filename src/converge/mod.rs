@@ -414,7 +414,8 @@ pub struct IntegratorResult {
     pub mse: f64,
     pub mae: f64,
     /// 1 / (relMSE x seconds) at the last checkpoint, seconds on the run's
-    /// clock; NaN (null in the JSON) for a run too short to measure.
+    /// clock; NaN (null in the JSON) for a run too short to measure or an
+    /// exact one (relMSE 0).
     #[serde(deserialize_with = "null_as_nan")]
     pub efficiency: f64,
     /// Samples per wall second.
@@ -639,8 +640,9 @@ fn dropped_note(x: &IntegratorResult) -> Option<String> {
     })
 }
 
-/// Notes on how far a result can be trusted: a run too short to time, a
-/// reference whose own noise is a large part of the measured error.
+/// Notes on how far a result can be trusted: an exact run or one too short
+/// to time, a reference whose own noise is a large part of the measured
+/// error (not said of an exact run, where it would read as infinite).
 fn result_notes(cfg: &ConvergeConfig, x: &IntegratorResult, info: &ReferenceInfo) -> Vec<String> {
     let mut notes = Vec::new();
     if x.rel_mse == 0.0 {
@@ -659,7 +661,7 @@ fn result_notes(cfg: &ConvergeConfig, x: &IntegratorResult, info: &ReferenceInfo
             cfg.clock.min_seconds()
         ));
     }
-    if let Some(floor) = info.noise_floor.filter(|&f| f > 0.1 * x.rel_mse) {
+    if let Some(floor) = info.noise_floor.filter(|&f| f > 0.1 * x.rel_mse && x.rel_mse > 0.0) {
         notes.push(format!(
             "{}: the reference's own noise (relMSE ~{floor:.2e}) is {:.0} % of the measured {:.2e}: its \
              efficiency ratios are pulled towards 1; render a reference with more samples",

@@ -93,7 +93,7 @@ pub fn efficiency_table(r: &ConvergeResults) -> String {
     for (rank, &i) in order.iter().enumerate() {
         let x = &r.integrators[i];
         let flag = if x.warnings.is_empty() { "" } else { " (!)" };
-        // An unmeasurably short run has no efficiency and no rank.
+        // An unmeasurably short or an exact run has no efficiency and no rank.
         let measured = !x.efficiency.is_nan();
         let or_dash = |v: String| if measured { v } else { "-".to_string() };
         let _ = writeln!(
