@@ -21,7 +21,7 @@
 use prism::integrators::{self, IntegratorOptions};
 use prism::sampling::Sampler;
 use prism::scene::load_scene;
-use prism::stats::{luminance, render_passes, ColourStats, Image, Verdict, ALPHA};
+use prism::stats::{block_means, luminance, render_passes, ColourStats, Image, Verdict, ALPHA};
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -85,17 +85,8 @@ fn main() {
 /// in every pass) are left out.
 fn block_correlation(images: &[Image]) {
     let n = ((RES / BLOCK) * (RES / BLOCK)) as usize;
-    let y: Vec<Vec<f64>> = images
-        .iter()
-        .map(|img| {
-            let mut v = vec![0.0; n];
-            for (i, p) in img.iter().enumerate() {
-                let (x, row) = (i as u32 % RES, i as u32 / RES);
-                v[((row / BLOCK) * (RES / BLOCK) + x / BLOCK) as usize] += luminance(p.map(f64::from));
-            }
-            v
-        })
-        .collect();
+    let y: Vec<Vec<f64>> =
+        images.iter().map(|img| block_means(img, RES, RES, BLOCK).into_iter().map(luminance).collect()).collect();
     let p = y.len() as f64;
     let mean: Vec<f64> = (0..n).map(|b| y.iter().map(|v| v[b]).sum::<f64>() / p).collect();
     let cov = |a: usize, b: usize| y.iter().map(|v| (v[a] - mean[a]) * (v[b] - mean[b])).sum::<f64>() / (p - 1.0);

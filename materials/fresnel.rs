@@ -32,8 +32,7 @@ pub fn fr_dielectric(cos_theta_i: f32, eta: f32) -> f32 {
         // No interface at all (also avoids 0/0 at grazing incidence).
         return 0.0;
     }
-    let (cos_i, eta) =
-        if cos_theta_i < 0.0 { (-cos_theta_i.max(-1.0), 1.0 / eta) } else { (cos_theta_i.min(1.0), eta) };
+    let (cos_i, eta) = from_incident_side(cos_theta_i, eta);
     let cos2_t = cos2_transmitted(cos_i, eta);
     if cos2_t <= 0.0 {
         return 1.0;
@@ -53,9 +52,19 @@ pub fn fr_dielectric_refracted(cos_theta_i: f32, cos_t: f32, eta: f32) -> f32 {
     if eta == 1.0 {
         return 0.0;
     }
-    let (cos_i, eta) =
-        if cos_theta_i < 0.0 { (-cos_theta_i.max(-1.0), 1.0 / eta) } else { (cos_theta_i.min(1.0), eta) };
+    let (cos_i, eta) = from_incident_side(cos_theta_i, eta);
     fr_of_cosines(cos_i, cos_t.abs().min(1.0), eta)
+}
+
+/// |cos_i| (at most 1) and the relative index seen from the incident side:
+/// `eta`, or 1 / eta for light arriving from inside (cos_theta_i < 0).
+#[inline]
+fn from_incident_side(cos_theta_i: f32, eta: f32) -> (f32, f32) {
+    if cos_theta_i < 0.0 {
+        (-cos_theta_i.max(-1.0), 1.0 / eta)
+    } else {
+        (cos_theta_i.min(1.0), eta)
+    }
 }
 
 /// Born & Wolf eq. 1.5.(21a)-(21b), written with the relative index `eta`

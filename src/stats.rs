@@ -85,6 +85,23 @@ pub fn pixel_mean_variance(passes: &[Image]) -> (Image, Image) {
     (mean.iter().map(|m| m.map(|c| c as f32)).collect(), var.collect())
 }
 
+/// The means of an image's `block` x `block` pixel blocks, row-major
+/// (partial blocks at the border are dropped).
+pub fn block_means(img: &[[f32; 3]], width: u32, height: u32, block: u32) -> Vec<[f64; 3]> {
+    let (bx, by) = (width / block, height / block);
+    let mut means = vec![[0f64; 3]; (bx * by) as usize];
+    for j in 0..by * block {
+        for i in 0..bx * block {
+            let px = img[(j * width + i) as usize];
+            let b = ((j / block) * bx + i / block) as usize;
+            for c in 0..3 {
+                means[b][c] += px[c] as f64 / (block * block) as f64;
+            }
+        }
+    }
+    means
+}
+
 /// Per-block means and standard errors of the mean over passes.
 #[derive(Clone, Debug)]
 pub struct BlockStats {
@@ -105,18 +122,7 @@ impl BlockStats {
         let k = passes.len();
         assert!(k >= 2, "need at least two passes");
         let n = (bx * by) as usize;
-        let mut per_pass = vec![vec![[0f64; 3]; n]; k];
-        for (p, img) in passes.iter().enumerate() {
-            for j in 0..by * block {
-                for i in 0..bx * block {
-                    let px = img[(j * width + i) as usize];
-                    let b = ((j / block) * bx + i / block) as usize;
-                    for c in 0..3 {
-                        per_pass[p][b][c] += px[c] as f64 / (block * block) as f64;
-                    }
-                }
-            }
-        }
+        let per_pass: Vec<_> = passes.iter().map(|img| block_means(img, width, height, block)).collect();
         let mut mean = vec![[0f64; 3]; n];
         let mut stderr = vec![[0f64; 3]; n];
         for b in 0..n {
