@@ -2,61 +2,87 @@
 //! estimator on one scene: how often it fails an estimate that is right
 //! (docs/validation.md, "The size of the rule, by bootstrap").
 //!
-//!   cargo run --release --example test_size -- SCENE INTEGRATOR SPP [PASSES [K]]
+//!   cargo run --release --example test_size -- SCENE INTEGRATOR SPP [--passes P] [--k K]
+//!       [--mis H] [--res R] [--block B] [--family F]
 //!
-//! Renders PASSES (default 1024) passes of SPP samples at the agreement
-//! matrix's 32 x 32 with its 8 x 8 blocks, takes their mean as the exact
-//! image, and draws K (default 16, the suite's) of the passes with
-//! replacement, TRIALS times: each draw is one test of the estimator
-//! against the exact image, as the suite makes them against analytic
-//! values, and a proxy for its comparisons of two estimates (which have
-//! both sides' errors). The fraction of draws that fail, at the family sizes 1 and 10 (the
-//! agreement matrix's: 4 integrators and the reference), is the rule's
-//! size for this estimator, against the ~3 x 1e-3 and ~3 x 1e-4 it should
-//! not exceed. The bootstrap keeps what the normal theory assumes away:
-//! skewed pass means (rare bright paths) and blocks that move together
-//! (light tracing's and BDPT's splats). It cannot draw a pass rarer than
-//! the PASSES it has, so it reads heavy tails low.
+//! Renders P (default 1024) passes of SPP samples at R x R pixels (default
+//! 32, the agreement matrix's and the stability tests') in B x B blocks
+//! (default 8), takes their mean as the exact image, and draws K (default
+//! 16, the suite's) of the passes with replacement, TRIALS times: each draw
+//! is one test of the estimator against the exact image, as the suite makes
+//! them against analytic values, and a proxy for its comparisons of two
+//! estimates (which have both sides' errors). The fraction of draws that
+//! fail, at the family sizes 1, 10 and F (a test's own: 10 is the agreement
+//! matrix's, 4 integrators and the reference), is the rule's size for this
+//! estimator, against the ~3 ALPHA / family it should not exceed. The
+//! bootstrap keeps what the normal theory assumes away: skewed pass means
+//! (rare bright paths) and blocks that move together (light tracing's and
+//! BDPT's splats). It cannot draw a pass rarer than the P it has, so it
+//! reads heavy tails low.
 
-use prism::integrators::{self, IntegratorOptions};
+use clap::Parser;
+use prism::integrators::{self, IntegratorOptions, MisHeuristic};
 use prism::sampling::Sampler;
 use prism::scene::load_scene;
 use prism::stats::{block_means, luminance, render_passes, ColourStats, Image, Verdict, ALPHA};
 use rayon::prelude::*;
 use std::path::Path;
 
-const RES: u32 = 32;
-const BLOCK: u32 = 8;
 const TRIALS: u32 = 200_000;
 const CHUNK: u32 = 1000;
 
+#[derive(Parser)]
+struct Args {
+    scene: String,
+    integrator: String,
+    spp: u32,
+    /// Passes rendered: the population the draws come from.
+    #[arg(long, default_value_t = 1024)]
+    passes: u32,
+    /// Passes per draw: the suite's K.
+    #[arg(long, default_value_t = 16)]
+    k: usize,
+    /// MIS heuristic of bdpt: power, balance or uniform.
+    #[arg(long, default_value = "power")]
+    mis: MisHeuristic,
+    /// Image width and height in pixels.
+    #[arg(long, default_value_t = 32)]
+    res: u32,
+    /// Block side in pixels.
+    #[arg(long, default_value_t = 8)]
+    block: u32,
+    /// A family size to report besides 1 and 10.
+    #[arg(long)]
+    family: Option<usize>,
+}
+
 fn main() {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let [scene, integrator, spp, rest @ ..] = &args[..] else {
-        panic!("usage: test_size SCENE INTEGRATOR SPP [PASSES [K]]");
-    };
-    let spp: u32 = spp.parse().expect("SPP");
-    let passes: u32 = rest.first().map_or(1024, |p| p.parse().expect("PASSES"));
-    let k: usize = rest.get(1).map_or(16, |k| k.parse().expect("K"));
-    let mut b = load_scene(Path::new(scene)).unwrap_or_else(|e| panic!("{e}"));
-    b.set_resolution(RES, RES).unwrap();
+    let a = Args::parse();
+    let (res, block) = (a.res, a.block);
+    let mut b = load_scene(Path::new(&a.scene)).unwrap_or_else(|e| panic!("{e}"));
+    b.set_resolution(res, res).unwrap();
     let scene_built = b.build();
-    let estimator = integrators::create(integrator, &IntegratorOptions::default()).unwrap();
-    let images = render_passes(&scene_built, estimator.as_ref(), spp, passes, 1 << 40, 0);
-    let exact = ColourStats::from_passes(&images, RES, RES, BLOCK).rgb.mean;
-    println!("{scene} {integrator} {spp} spp, {passes} passes, tests of {k}:");
-    block_correlation(&images);
+    let options = IntegratorOptions { mis: a.mis, ..Default::default() };
+    let estimator = integrators::create(&a.integrator, &options).unwrap();
+    let images = render_passes(&scene_built, estimator.as_ref(), a.spp, a.passes, 1 << 40, 0);
+    let exact = ColourStats::from_passes(&images, res, res, block).rgb.mean;
+    println!(
+        "{} {} (mis {:?}) {} spp, {res}x{res} in {block}x{block} blocks, {} passes, tests of {}:",
+        a.scene, a.integrator, a.mis, a.spp, a.passes, a.k
+    );
+    block_correlation(&images, res, block);
+    let families: Vec<usize> = [1, 10].into_iter().chain(a.family).collect();
     // Chunks of draws in parallel, each from its own stream.
     let failed = (0..TRIALS / CHUNK)
         .into_par_iter()
         .map(|chunk| {
             let mut sampler = Sampler::new(35, chunk as u64, 0);
-            let mut failed = [[0u32; 3]; 2];
+            let mut failed = vec![[0u32; 3]; families.len()];
             for _ in 0..CHUNK {
                 let draw: Vec<Image> =
-                    (0..k).map(|_| images[(sampler.get_bits() % passes as u64) as usize].clone()).collect();
-                let stats = ColourStats::from_passes(&draw, RES, RES, BLOCK);
-                for (f, family) in [1, 10].into_iter().enumerate() {
+                    (0..a.k).map(|_| images[(sampler.get_bits() % a.passes as u64) as usize].clone()).collect();
+                let stats = ColourStats::from_passes(&draw, res, res, block);
+                for (f, &family) in families.iter().enumerate() {
                     let v = Verdict::versus_values(&stats, &exact, family);
                     failed[f][0] += !v.passed() as u32;
                     failed[f][1] += (v.y.chi2_p < ALPHA / family as f64) as u32;
@@ -65,8 +91,11 @@ fn main() {
             }
             failed
         })
-        .reduce(|| [[0; 3]; 2], |a, b| std::array::from_fn(|f| std::array::from_fn(|i| a[f][i] + b[f][i])));
-    for (f, family) in [1, 10].into_iter().enumerate() {
+        .reduce(
+            || vec![[0; 3]; families.len()],
+            |a, b| a.iter().zip(&b).map(|(a, b)| std::array::from_fn(|i| a[i] + b[i])).collect(),
+        );
+    for (f, family) in families.iter().enumerate() {
         let rate = |n: u32| format!("{:.1e} ({n})", n as f64 / TRIALS as f64);
         println!(
             "  family {family:>2}: Verdict fails {} of {TRIALS}; by the Y chi-square {}, by a worst z {}",
@@ -83,10 +112,10 @@ fn main() {
 /// widens it; 1 for independent blocks), less the n (n - 1) / (P - 1)
 /// that P passes give uncorrelated blocks. Blocks that do not vary (black
 /// in every pass) are left out.
-fn block_correlation(images: &[Image]) {
-    let n = ((RES / BLOCK) * (RES / BLOCK)) as usize;
+fn block_correlation(images: &[Image], res: u32, block: u32) {
+    let n = ((res / block) * (res / block)) as usize;
     let y: Vec<Vec<f64>> =
-        images.iter().map(|img| block_means(img, RES, RES, BLOCK).into_iter().map(luminance).collect()).collect();
+        images.iter().map(|img| block_means(img, res, res, block).into_iter().map(luminance).collect()).collect();
     let p = y.len() as f64;
     let mean: Vec<f64> = (0..n).map(|b| y.iter().map(|v| v[b]).sum::<f64>() / p).collect();
     let cov = |a: usize, b: usize| y.iter().map(|v| (v[a] - mean[a]) * (v[b] - mean[b])).sum::<f64>() / (p - 1.0);
@@ -98,7 +127,7 @@ fn block_correlation(images: &[Image]) {
             sum_r2 += 2.0 * r * r;
             largest = largest.max(r.abs());
             if r.abs() > 0.5 {
-                println!("  blocks {a} and {b} (row-major, {} per row): correlation {r:.2}", RES / BLOCK);
+                println!("  blocks {a} and {b} (row-major, {} per row): correlation {r:.2}", res / block);
             }
         }
     }
