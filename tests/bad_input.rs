@@ -133,6 +133,14 @@ const CASES: &[Case] = &[
         words: &["materials.white.ior: must be at least 1e-6 (min 1e-20)"],
     },
     Case {
+        id: "ior-near-one",
+        edits: &[("{\"type\": \"diffuse\", \"reflectance\": 0.5}", "{\"type\": \"dielectric\", \"ior\": 1.00001, \"roughness\": 0.5}")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:3:56:",
+        words: &["materials.white.ior: a rough dielectric's ior must be 1 or differ from 1 by at least 1e-4 (here 1.00001 to 1.00001)"],
+    },
+    Case {
         id: "cold-blackbody",
         edits: &[("\"radiance\": 1.0", "\"radiance\": {\"blackbody\": 1}")],
         args: &[],

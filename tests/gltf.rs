@@ -147,6 +147,13 @@ fn material_rules_threshold_metallic_and_transmission_with_warnings() {
     let Bsdf::Dielectric(d) = &scene.materials[0].bsdf else { panic!("{:?}", scene.materials[0].bsdf) };
     assert_eq!(d.eta, Spectrum::Constant(1.33));
     assert!((d.distrib.alpha_x - 0.25).abs() < 1e-6);
+
+    // A rough interface nearer to index 1 than f32 resolves is index-matched.
+    v["materials"][0]["extensions"]["KHR_materials_ior"]["ior"] = json!(1.00001);
+    let g = parse(&v, "Box (ior 1.00001)").unwrap();
+    assert!(has(&g.messages, "ior 1.00001 is within 1e-4 of 1 on a rough surface: 1 used"), "{:#?}", g.messages);
+    let Bsdf::Dielectric(d) = &g.builder.build().materials[0].bsdf else { panic!("not a dielectric") };
+    assert_eq!(d.eta, Spectrum::Constant(1.0));
 }
 
 #[test]

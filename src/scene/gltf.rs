@@ -755,7 +755,18 @@ impl<'a> Importer<'a> {
             if rgb != [1.0; 3] {
                 self.warn(label, "the base colour does not tint transmission in prism (a clear dielectric)");
             }
-            return Bsdf::Dielectric(Dielectric::new(Spectrum::Constant(ior), alpha, alpha));
+            let mut dielectric = Dielectric::new(Spectrum::Constant(ior), alpha, alpha);
+            if dielectric.index_unresolved() {
+                self.warn(
+                    label,
+                    format!(
+                        "ior {ior} is within {:e} of 1 on a rough surface: 1 used (an index-matched interface)",
+                        Dielectric::MIN_INDEX_CONTRAST
+                    ),
+                );
+                dielectric.eta = Spectrum::Constant(1.0);
+            }
+            return Bsdf::Dielectric(dielectric);
         }
         Bsdf::Diffuse(Diffuse::new(reflectance))
     }

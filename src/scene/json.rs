@@ -863,7 +863,21 @@ impl<'a> Ctx<'a> {
             MaterialSpec::Dielectric(d) => {
                 let eta = self.index(&at("ior"), &d.ior, Use::Ior)?;
                 let (ax, ay) = self.alphas(path, d.roughness, d.alpha, d.alpha_x, d.alpha_y)?;
-                Bsdf::Dielectric(Dielectric::new(eta, ax, ay))
+                let dielectric = Dielectric::new(eta, ax, ay);
+                if dielectric.index_unresolved() {
+                    return Err(self.err(
+                        &at("ior"),
+                        format!(
+                            "a rough dielectric's ior must be 1 or differ from 1 by at least {:e} (here {} to {}): \
+                             nearer, f32 cannot resolve its refraction (use ior 1 for an index-matched interface, \
+                             or a smooth one)",
+                            Dielectric::MIN_INDEX_CONTRAST,
+                            dielectric.eta.min_value(),
+                            dielectric.eta.max_value()
+                        ),
+                    ));
+                }
+                Bsdf::Dielectric(dielectric)
             }
         })
     }
