@@ -111,7 +111,10 @@ impl Integrator for Bdpt {
                 add(0, t, c, None);
             }
             // An escaped camera path can only be completed by itself (s = 0).
-            if camera[t - 1].is_infinite() || light.is_empty() || t > max_depth + 1 {
+            // s = 1 draws a light of its own, so it runs whether or not the
+            // light subpath is empty (one that emits nothing at the four
+            // wavelengths is); the loop over s >= 2 then has nothing to join.
+            if camera[t - 1].is_infinite() || t > max_depth + 1 {
                 continue;
             }
             if let Some(c) = next_event(scene, light, camera, t, h, sampler, lambda) {

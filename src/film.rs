@@ -89,7 +89,7 @@ impl std::iter::Sum for DroppedSamples {
 /// keeps every f32 sample above 2^-36 exact and truncates smaller ones by less
 /// than 10^-18, far below what an f32 pixel can show.
 const FRAC_BITS: i32 = 60;
-/// The largest sample colour the film accepts: 2^48, so that 2^19 such
+/// The largest sample colour the film accepts: 2^48, so that 2^19 - 1 such
 /// samples in one pixel still fit the 127 bits of an i128 sum. Past that a
 /// sample that would carry its pixel's sum out of range is dropped and
 /// counted as infinite (`add_fixed`).

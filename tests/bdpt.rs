@@ -106,6 +106,48 @@ fn bdpt_agrees_with_path_and_light_on_the_cornell_box() {
     }
 }
 
+/// Two lamps over a floor, one of them emitting only in 540-560 nm. A light
+/// subpath that starts on the narrow lamp with none of its four wavelengths
+/// in the band emits nothing and ends empty; next-event estimation (s = 1)
+/// draws a light of its own and must still run. An audit (session 36) found
+/// it skipped with the empty subpath, which took a large share of the
+/// floor's direct light from the white lamp away (the narrow lamp is drawn
+/// for about half the light subpaths, and all four wavelengths miss its
+/// band most of the time): against `path`, sRGB z 30 and Y z 21.
+/// Control: 2 % rejected.
+#[test]
+fn narrow_band_lights_keep_next_event_estimation() {
+    let lamp = |x0: f32, emission: &str| {
+        format!(
+            r#"{{"shape": {{"type": "quad", "corners": [[{x0}, 2.5, -0.5], [{x1}, 2.5, -0.5], [{x1}, 2.5, 0.5], [{x0}, 2.5, 0.5]]}}, "material": "black", "emission": {emission}}}"#,
+            x1 = x0 + 1.0
+        )
+    };
+    let text = format!(
+        r#"{{
+  "camera": {{"position": [0, 1.5, -3], "look_at": [0, 0, 0], "fov": 50, "width": 32, "height": 32}},
+  "materials": {{"white": {{"type": "diffuse", "reflectance": 0.7}}, "black": {{"type": "diffuse", "reflectance": 0}}}},
+  "objects": [
+    {{"shape": {{"type": "quad", "corners": [[-3, 0, -3], [-3, 0, 3], [3, 0, 3], [3, 0, -3]]}}, "material": "white"}},
+    {white}, {narrow}
+  ]
+}}"#,
+        white = lamp(-1.5, "5"),
+        narrow = lamp(0.5, r#"{"wavelengths": [539, 540, 560, 561], "values": [0, 50, 50, 0]}"#)
+    );
+    let s = prism::scene::parse_scene(&text, "two lamps", std::path::Path::new("."))
+        .unwrap_or_else(|e| panic!("{e}"))
+        .build();
+    let path = stats(&render_passes(&s, integrator("path").as_ref(), 16, K, seed(1100), 0), 8);
+    let bd = stats(&render_passes(&s, bdpt(MisHeuristic::Power).as_ref(), 16, K, seed(1200), 0), 8);
+    let v = versus(&bd, &path);
+    eprintln!("two lamps, bdpt vs path: {v}");
+    assert!(v.passed(), "{v}");
+    let c = versus(&bd.scaled(1.02), &path);
+    eprintln!("negative control (bdpt x1.02): {c}");
+    assert!(!c.passed(), "a 2% bias went undetected: {c}");
+}
+
 /// The uniform and balance heuristics are unbiased too (16 x 16 blocks: the
 /// uniform weights are noisy); the relMSE of one pass against the mean of
 /// `path`'s passes shows what the heuristic buys (printed, not asserted).
