@@ -65,8 +65,14 @@ fn reference(scene_file: &str) -> ColourStats {
 /// Every integrator against the reference and against every other one.
 fn matrix(scene_file: &str) {
     let reference = reference(scene_file);
-    let all: Vec<(&str, ColourStats)> =
-        INTEGRATORS.iter().map(|i| (i.name, stats(scene_file, i.name, 1024, 40))).collect();
+    // Seeds of their own (an audit, session 36): with one seed for all,
+    // the estimators' first dimensions (wavelengths, pixel positions) were
+    // the same numbers, their pass means correlated, and each z understated.
+    let all: Vec<(&str, ColourStats)> = INTEGRATORS
+        .iter()
+        .enumerate()
+        .map(|(k, i)| (i.name, stats(scene_file, i.name, 1024, 200 + 100 * k as u64)))
+        .collect();
     let n = all.len();
     let family = n + n * (n - 1) / 2;
     let mut failures = Vec::new();
@@ -160,15 +166,15 @@ fn agreement_with_smooth_shading_normals() {
     let from = "\"name\": \"light\"";
     let sphere = "\"name\": \"ball\", \"shape\": {\"type\": \"sphere\", \"center\": [278.0, 200.0, 250.0], \"radius\": 150.0, \"subdivisions\": 0, \"smooth\": true}, \"material\": \"white\"}, {\"name\": \"light\"";
     let s = scenes::scene_variant("cornell-box.json", RES, RES, from, sphere);
-    let stats = |name: &str, spp: u32| {
+    let stats = |name: &str, spp: u32, base: u64| {
         let integ = integrators::create(name, &IntegratorOptions::default()).unwrap();
-        ColourStats::from_passes(&render_passes(&s, integ.as_ref(), spp, K, seed(50), 0), RES, RES, BLOCK)
+        ColourStats::from_passes(&render_passes(&s, integ.as_ref(), spp, K, seed(base), 0), RES, RES, BLOCK)
     };
-    let path = stats("path", 32);
+    let path = stats("path", 32, 50);
     let mut failures = Vec::new();
     let mut light = None;
-    for (name, spp) in [("bdpt", 32), ("light", 32)] {
-        let st = stats(name, spp);
+    for (name, spp, base) in [("bdpt", 32, 150), ("light", 32, 250)] {
+        let st = stats(name, spp, base);
         let c = Verdict::versus(&st, &path, 2);
         eprintln!("smooth normals: {name} vs path: {c}");
         if !c.passed() {
@@ -230,6 +236,62 @@ fn a_two_sided_emitter_agrees_across_integrators() {
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
+/// Three kinds of light at once: the box's area light, a point light and a
+/// constant sky entering through the open front, the camera inside the box
+/// looking at the back wall (no sky in view, which light tracing could not
+/// show). Each lights about a third of the room. Everywhere else the sky
+/// and the point light are a scene's only light, so their selection
+/// probability is 1 and a light subpath or next-event estimate that forgot
+/// to divide by it (or used another light's) could not show; here the
+/// alias table gives each a share of about a third. `light` and `bdpt`
+/// agree with `path`. Controls: each x1.02 is rejected.
+#[test]
+fn point_area_and_environment_lights_together() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.json");
+    let mut text = std::fs::read_to_string(&path).unwrap();
+    for (from, to) in [
+        ("\"position\": [278.0, 273.0, -800.0]", "\"position\": [278.0, 273.0, 60.0]"),
+        ("\"look_at\": [278.0, 273.0, 0.0]", "\"look_at\": [278.0, 273.0, 559.0]"),
+        ("\"fov\": 39.3077", "\"fov\": 60"),
+        (
+            "\"render\": {",
+            "\"lights\": [{\"type\": \"point\", \"position\": [400, 450, 350], \"intensity\": 120000}, \
+             {\"type\": \"environment\", \"radiance\": 0.8}],\n  \"render\": {",
+        ),
+    ] {
+        assert!(text.contains(from), "cornell-box.json has no {from}");
+        text = text.replace(from, to);
+    }
+    let mut b =
+        prism::scene::parse_scene(&text, "three lights", path.parent().unwrap()).unwrap_or_else(|e| panic!("{e}"));
+    b.set_resolution(RES, RES).unwrap();
+    let s = b.build();
+    assert_eq!(s.lights.len(), 4, "two triangles of the area light, the point light and the sky");
+    let stats = |name: &str, spp: u32, base: u64| {
+        let integ = integrators::create(name, &IntegratorOptions::default()).unwrap();
+        // Light tracing warns of any sky: it cannot show one in view.
+        let warnings = integ.unsamplable(&s);
+        assert!(warnings.iter().all(|w| name == "light" && w.contains("see the environment")), "{name}: {warnings:?}");
+        ColourStats::from_passes(&render_passes(&s, integ.as_ref(), spp, K, seed(base), 0), RES, RES, BLOCK)
+    };
+    let path = stats("path", 128, 70);
+    let mut failures = Vec::new();
+    for (name, spp, base) in [("light", 512, 90), ("bdpt", 32, 110)] {
+        let st = stats(name, spp, base);
+        let c = Verdict::versus(&st, &path, 2);
+        eprintln!("three lights: {name} vs path: {c}");
+        if !c.passed() {
+            failures.push(format!("{name}: {c}"));
+        }
+        let c = Verdict::versus(&st.scaled(1.02), &path, 2);
+        eprintln!("three lights: {name} x1.02 vs path (control): {c}");
+        if c.passed() {
+            failures.push(format!("control {name} x1.02 passed: {c}"));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
 /// The camera and a diffuse floor below one rough glass interface (GGX,
 /// alpha 0.3, eta 1.5), the light above it in air. Radiance crossing into
 /// a denser medium grows by eta^2 (Veach 1997 §5.2; radiance-mode
@@ -246,23 +308,23 @@ fn a_two_sided_emitter_agrees_across_integrators() {
 /// eta^2 factor is symmetric and would render both the same.
 #[test]
 fn agreement_across_one_rough_glass_interface() {
-    let stats = |name: &str, spp: u32, flipped: bool| {
+    let stats = |name: &str, spp: u32, flipped: bool, base: u64| {
         let s = one_interface(flipped);
         let integ = integrators::create(name, &IntegratorOptions::default()).unwrap();
         assert!(integ.unsamplable(&s).is_empty(), "{name}: {:?}", integ.unsamplable(&s));
-        ColourStats::from_passes(&render_passes(&s, integ.as_ref(), spp, K, seed(60), 0), RES, RES, BLOCK)
+        ColourStats::from_passes(&render_passes(&s, integ.as_ref(), spp, K, seed(base), 0), RES, RES, BLOCK)
     };
-    let path = stats("path", 32, false);
+    let path = stats("path", 32, false, 60);
     let mut failures = Vec::new();
-    for (name, spp) in [("bdpt", 32), ("light", 32)] {
-        let c = Verdict::versus(&stats(name, spp, false), &path, 2);
+    for (name, spp, base) in [("bdpt", 32, 160), ("light", 32, 260)] {
+        let c = Verdict::versus(&stats(name, spp, false, base), &path, 2);
         eprintln!("one interface: {name} vs path: {c}");
         if !c.passed() {
             failures.push(format!("{name}: {c}"));
         }
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
-    let c = Verdict::versus(&stats("path", 32, true), &path, 1);
+    let c = Verdict::versus(&stats("path", 32, true, 360), &path, 1);
     eprintln!("one interface, turned over (premise control): {c}");
     assert!(!c.passed(), "turning the interface over changed nothing: {c}");
 }
