@@ -3,7 +3,7 @@
 //! (docs/validation.md, "The size of the rule, by bootstrap").
 //!
 //!   cargo run --release --example test_size -- SCENE INTEGRATOR SPP [--passes P] [--k K]
-//!       [--mis H] [--res R] [--block B] [--family F]
+//!       [--mis H] [--res R] [--block B] [--family F] [--only M.. | --not M..]
 //!
 //! Renders P (default 1024) passes of SPP samples at R x R pixels (default
 //! 32, the agreement matrix's and the stability tests') in B x B blocks
@@ -24,7 +24,9 @@ use clap::Parser;
 use prism::integrators::{self, IntegratorOptions, MisHeuristic};
 use prism::sampling::Sampler;
 use prism::scene::load_scene;
-use prism::stats::{block_means, luminance, render_passes, ColourStats, Image, Verdict, ALPHA};
+use prism::stats::{
+    block_means, interior_pixels, luminance, masked, render_passes, ColourStats, Image, Verdict, ALPHA,
+};
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -54,6 +56,14 @@ struct Args {
     /// A family size to report besides 1 and 10.
     #[arg(long)]
     family: Option<usize>,
+    /// Compare only the pixels whose first hits are all on these materials
+    /// (`stats::interior_pixels`, as the stability tests' regions).
+    #[arg(long, num_args = 1.., conflicts_with = "not")]
+    only: Vec<String>,
+    /// Compare only the pixels whose first hits are all on surfaces of
+    /// other materials than these.
+    #[arg(long, num_args = 1..)]
+    not: Vec<String>,
 }
 
 fn main() {
@@ -64,7 +74,16 @@ fn main() {
     let scene_built = b.build();
     let options = IntegratorOptions { mis: a.mis, ..Default::default() };
     let estimator = integrators::create(&a.integrator, &options).unwrap();
-    let images = render_passes(&scene_built, estimator.as_ref(), a.spp, a.passes, 1 << 40, 0);
+    let mut images = render_passes(&scene_built, estimator.as_ref(), a.spp, a.passes, 1 << 40, 0);
+    if !(a.only.is_empty() && a.not.is_empty()) {
+        let keep = |n: &str| match a.only.is_empty() {
+            true => !n.is_empty() && !a.not.iter().any(|m| m == n),
+            false => a.only.iter().any(|m| m == n),
+        };
+        let mask = interior_pixels(&scene_built, 4, keep);
+        println!("{} of {} pixels compared", mask.iter().filter(|&&m| m).count(), mask.len());
+        images = masked(&images, &mask);
+    }
     let exact = ColourStats::from_passes(&images, res, res, block).rgb.mean;
     println!(
         "{} {} (mis {:?}) {} spp, {res}x{res} in {block}x{block} blocks, {} passes, tests of {}:",

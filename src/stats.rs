@@ -8,6 +8,7 @@ use crate::film::Film;
 use crate::integrators::Integrator;
 use crate::render::{render, RenderOptions, RenderStats};
 use crate::scene::Scene;
+use glam::Vec2;
 use statrs::distribution::{ChiSquared, ContinuousCDF, Normal, StudentsT};
 
 /// An image as linear sRGB pixels, row-major.
@@ -100,6 +101,41 @@ pub fn block_means(img: &[[f32; 3]], width: u32, height: u32, block: u32) -> Vec
         }
     }
     means
+}
+
+/// The pixels whose first hits all pass `keep` (a material's name; "" for
+/// none), along an `n` x `n` grid of camera rays through each, and through
+/// each of their 8 neighbours (so that no sliver of another surface hides
+/// at the edge): the regions of a view that the stability tests compare.
+pub fn interior_pixels(scene: &Scene, n: u32, keep: impl Fn(&str) -> bool) -> Vec<bool> {
+    let cam = &scene.camera;
+    let (w, h) = (cam.width as i64, cam.height as i64);
+    let pure = |x: i64, y: i64| {
+        (0..n * n).all(|k| {
+            let (i, j) = (k % n, k / n);
+            let raster = Vec2::new(x as f32 + (i as f32 + 0.5) / n as f32, y as f32 + (j as f32 + 0.5) / n as f32);
+            keep(
+                scene.intersect(&cam.generate_ray(raster)).map_or("", |si| &scene.materials[si.material as usize].name),
+            )
+        })
+    };
+    let pure: Vec<bool> = (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).map(|(x, y)| pure(x, y)).collect();
+    (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| {
+            (-1..=1).all(|dy| {
+                (-1..=1).all(|dx| {
+                    let (u, v) = (x + dx, y + dy);
+                    !(0..w).contains(&u) || !(0..h).contains(&v) || pure[(v * w + u) as usize]
+                })
+            })
+        })
+        .collect()
+}
+
+/// Passes with the pixels outside `mask` set to black.
+pub fn masked(passes: &[Image], mask: &[bool]) -> Vec<Image> {
+    passes.iter().map(|img| img.iter().zip(mask).map(|(p, &m)| if m { *p } else { [0.0; 3] }).collect()).collect()
 }
 
 /// Per-block means and standard errors of the mean over passes.

@@ -33,12 +33,12 @@
 #[path = "common/scenes.rs"]
 mod scenes;
 
-use glam::{DMat3, DVec3, Vec2};
+use glam::{DMat3, DVec3};
 use prism::film::Film;
 use prism::integrators::{Integrator, MisHeuristic, INTEGRATORS};
 use prism::render::{render, RenderOptions};
 use prism::scene::{parse_scene, Scene};
-use prism::stats::{ColourStats, Image, Verdict};
+use prism::stats::{interior_pixels, masked, ColourStats, Image, Verdict};
 use scenes::{bdpt, integrator, scene};
 use std::path::Path;
 use std::process::Command;
@@ -104,51 +104,6 @@ fn passes_checked(s: &Scene, integ: &dyn Integrator, spp: u32, seed: u64, what: 
     (0..K).map(|i| render_checked(s, integ, spp, seed + i as u64, what)).collect()
 }
 
-/// For every pixel, the material names that an `n` x `n` grid of camera rays
-/// through it hit first ("" for none).
-fn first_hits(s: &Scene, n: u32) -> Vec<Vec<String>> {
-    let cam = &s.camera;
-    let mut out = Vec::with_capacity((cam.width * cam.height) as usize);
-    for y in 0..cam.height {
-        for x in 0..cam.width {
-            let mut names: Vec<String> = Vec::new();
-            for j in 0..n {
-                for i in 0..n {
-                    let raster =
-                        Vec2::new(x as f32 + (i as f32 + 0.5) / n as f32, y as f32 + (j as f32 + 0.5) / n as f32);
-                    let name = match s.intersect(&cam.generate_ray(raster)) {
-                        Some(si) => s.materials[si.material as usize].name.clone(),
-                        None => String::new(),
-                    };
-                    if !names.contains(&name) {
-                        names.push(name);
-                    }
-                }
-            }
-            out.push(names);
-        }
-    }
-    out
-}
-
-/// Pixels whose every first hit, and every first hit of their 8 neighbours,
-/// passes `keep` (so that no sliver of another surface hides at the edge).
-fn interior(s: &Scene, hits: &[Vec<String>], keep: impl Fn(&str) -> bool) -> Vec<bool> {
-    let (w, h) = (s.camera.width as i64, s.camera.height as i64);
-    let pure: Vec<bool> = hits.iter().map(|names| names.iter().all(|n| keep(n))).collect();
-    (0..h)
-        .flat_map(|y| (0..w).map(move |x| (x, y)))
-        .map(|(x, y)| {
-            (-1..=1).all(|dy| {
-                (-1..=1).all(|dx| {
-                    let (u, v) = (x + dx, y + dy);
-                    !(0..w).contains(&u) || !(0..h).contains(&v) || pure[(v * w + u) as usize]
-                })
-            })
-        })
-        .collect()
-}
-
 /// A region of the view: its name, which first-hit materials belong to it,
 /// and the fewest interior pixels a comparison needs there.
 type Region<'a> = (&'a str, &'a dyn Fn(&str) -> bool, usize);
@@ -157,18 +112,13 @@ type Region<'a> = (&'a str, &'a dyn Fn(&str) -> bool, usize);
 /// first-hit materials; panics unless each has at least its minimum count,
 /// so that a changed scene cannot leave a comparison with nothing to compare.
 fn regions<const N: usize>(s: &Scene, what: &str, regions: [Region; N]) -> [Vec<bool>; N] {
-    let hits = first_hits(s, 4);
     regions.map(|(name, keep, min)| {
-        let mask = interior(s, &hits, keep);
+        let mask = interior_pixels(s, 4, keep);
         let n = mask.iter().filter(|&&m| m).count();
         eprintln!("{what}: {n} {name} pixels");
         assert!(n > min, "{what} should show more than {min} {name} pixels, not {n}");
         mask
     })
-}
-
-fn masked(passes: &[Image], mask: &[bool]) -> Vec<Image> {
-    passes.iter().map(|img| img.iter().zip(mask).map(|(p, &m)| if m { *p } else { [0.0; 3] }).collect()).collect()
 }
 
 fn stats(passes: &[Image], s: &Scene, block: u32) -> ColourStats {
@@ -388,8 +338,7 @@ fn caustic_and_gap_room_agree_where_sampled() {
     for file in ["caustic.json", "gap-room.json"] {
         let s = scene(file, RES, RES);
         let reference = passes_checked(&s, integrator("bdpt").as_ref(), 256, seed() + 300, "bdpt reference");
-        let hits = first_hits(&s, 4);
-        let diffuse = interior(&s, &hits, |n| n != "glass" && !n.is_empty());
+        let diffuse = interior_pixels(&s, 4, |n| n != "glass" && !n.is_empty());
         for &(_, name, spp, control) in runs.iter().filter(|r| r.0 == file) {
             let integ = integrator(name);
             let warns = !integ.unsamplable(&s).is_empty();
@@ -550,8 +499,7 @@ fn sds_caustic_is_missing_identically() {
     b.set_resolution(16, 16).unwrap();
     let area = b.build();
     assert!(warnings("path", &area).is_empty() && warnings("bdpt", &area).is_empty());
-    let hits = first_hits(&area, 4);
-    let water = interior(&area, &hits, |n| n == "water");
+    let water = interior_pixels(&area, 4, |n| n == "water");
     for name in ["path", "bdpt"] {
         let img = render_checked(&area, integrator(name).as_ref(), 256, seed() + 300, name);
         let lit = img.iter().zip(&water).filter(|(p, &m)| m && xyz(**p).y > 0.0).count();
