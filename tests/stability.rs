@@ -375,11 +375,12 @@ fn caustic_and_gap_room_agree_where_sampled() {
 /// rough), where each sampling technique alone fails somewhere: light
 /// sampling on the smooth plates, BSDF sampling on the smallest light. The
 /// estimators that combine them agree everywhere: path (NEE + BSDF sampling,
-/// power heuristic) and bdpt with each of its heuristics; light tracing on
+/// power heuristic) and bdpt with the power and balance heuristics; light tracing on
 /// the pixels whose first hit is the diffuse backdrop (it reaches the plates'
 /// highlights only by its rare light -> plate -> pinhole connections).
-/// simple_path, which must hit a 0.02 light by BSDF sampling, is checked for
-/// bad numbers only (its block means are heavy-tailed here).
+/// simple_path, which must hit a 0.02 light by BSDF sampling, and bdpt with
+/// uniform weights are checked for bad numbers only (their block means are
+/// heavy-tailed here).
 type Run<'a> = (&'a str, Box<dyn Integrator>, u32, Option<&'a [bool]>);
 
 #[test]
@@ -393,16 +394,19 @@ fn tiny_lights_on_glossy_plates_agree_where_combined() {
         assert!(integ.unsamplable(&s).is_empty(), "{name} warns on veach-mis: {:?}", integ.unsamplable(&s));
     }
     passes_checked(&s, integrator("simple_path").as_ref(), 64, seed() + 500, "veach-mis simple_path");
+    // Uniform weights give the strategies that find the tiny lights rarely
+    // their full share, so their pass means are heavy-tailed: at 256 spp the
+    // uniform heuristic failed against path at PRISM_TEST_SEED 31676 and
+    // 110866 (sRGB z 9.7 and 8.1), and at 1024 spp a bootstrap of 256
+    // passes (`examples/test_size.rs`) still fails 1.1e-2 of its tests, 15
+    // times the bound. Bad numbers only here; its unbiasedness is proven on
+    // the Cornell box (bdpt.rs, `uniform_and_balance_mis_are_unbiased`).
+    passes_checked(&s, bdpt(MisHeuristic::Uniform).as_ref(), 64, seed() + 550, "veach-mis bdpt --mis uniform");
     let path = passes_checked(&s, integrator("path").as_ref(), 256, seed() + 600, "veach-mis path");
-    // (label, estimator, spp, the pixels compared: None for all). Uniform
-    // weights give strategies that find the tiny lights rarely their full
-    // share, so their pass means are heavy-tailed: at 256 spp the uniform
-    // heuristic failed against path at PRISM_TEST_SEED 31676 and 110866
-    // (sRGB z 9.7 and 8.1), 2 seeds of the 15 of sessions 34-35.
-    let others: [Run; 4] = [
+    // (label, estimator, spp, the pixels compared: None for all).
+    let others: [Run; 3] = [
         ("bdpt", integrator("bdpt"), 128, None),
         ("bdpt --mis balance", bdpt(MisHeuristic::Balance), 128, None),
-        ("bdpt --mis uniform", bdpt(MisHeuristic::Uniform), 1024, None),
         ("light", integrator("light"), 256, Some(&backdrop)),
     ];
     let family = others.len();
