@@ -48,7 +48,8 @@
 //! or of the `prism render` or `prism merge` that made it, if present) or
 //! rendered here (`--reference-spp`) with seeds disjoint from the
 //! run's (`REFERENCE_SEED_OFFSET`): a reference sharing sample streams with
-//! the image it judges would correlate with it and flatter it.
+//! the image it judges would correlate with it and flatter it, so a stored
+//! one whose sidecar shows such seeds is refused.
 //!
 //! Files: this one runs the measurement; `reference` obtains the reference,
 //! `report` writes the outputs, `chart` draws the charts and `images` the

@@ -8,7 +8,7 @@ use crate::integrators::{self, IntegratorOptions, MisHeuristic};
 use crate::reference::{make_reference, write_reference, ReferenceMeta};
 use crate::scene::Scene;
 use crate::stats;
-use anyhow::{anyhow, ensure, Context, Result};
+use anyhow::{anyhow, bail, ensure, Context, Result};
 use serde::Deserialize;
 use std::path::Path;
 
@@ -111,8 +111,8 @@ fn render_reference(
 }
 
 /// Notes on a reference's origin against the run (another scene, an
-/// estimator that misses paths, another depth, shared random streams);
-/// an error when its size differs.
+/// estimator that misses paths, another depth); an error when it shares
+/// the run's random streams.
 fn origin_notes(
     cfg: &ConvergeConfig,
     scene: &Scene,
@@ -166,14 +166,19 @@ fn origin_notes(
     // The run renders samples 0..spp of seed `seed` (the sampler is keyed
     // by seed, pixel and sample index; a run to a time may reach any
     // sample): a reference shares its streams if it used that seed for
-    // one of those samples.
+    // one of those samples. Its errors would then be too low (the line of
+    // the reference's own estimator by a factor (N - n) / (N + n), the
+    // others through the shared wavelengths and pixel positions), so the
+    // run is refused, not noted (an audit, session 36).
     let seeds = m.seed..m.seed.saturating_add(m.passes.unwrap_or(1) as u64);
     if seeds.contains(&seed) && m.first_sample < cfg.max_spp.unwrap_or(u32::MAX) {
-        notes.push(format!(
-            "the reference's passes used seeds {}..{} which include the run's seed {seed}: its samples are \
-             correlated with the run's, and the errors measured are too low",
-            seeds.start, seeds.end
-        ));
+        bail!(
+            "{}: the reference's passes used seeds {}..{}, which include the run's seed {seed}: its samples would \
+             be correlated with the run's and every error measured too low; give the run another --seed",
+            path.display(),
+            seeds.start,
+            seeds.end
+        );
     }
     Ok(notes)
 }
