@@ -395,7 +395,7 @@ fn a_rendered_reference_is_accepted() {
     let refused = |reference: &str, spp: u32| {
         let mut cfg = config("white-room.json", "path", ReferenceSource::File(d.join(reference)), &d.join("o"), 8);
         cfg.max_spp = Some(spp);
-        let e = format!("{:#}", run(&cfg).err().expect("a reference of the run's own samples was accepted"));
+        let e = format!("{:#}", run(&cfg).expect_err("a reference of the run's own samples was accepted"));
         assert!(e.contains(reference) && e.contains("which include the run's seed 11"), "{e}");
     };
     render(&["--integrator", "bdpt", "--mis", "balance", "--spp", "4", "--seed", "99", "--out", &path("ref.exr")]);
