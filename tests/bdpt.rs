@@ -138,8 +138,8 @@ fn narrow_band_lights_keep_next_event_estimation() {
     let s = prism::scene::parse_scene(&text, "two lamps", std::path::Path::new("."))
         .unwrap_or_else(|e| panic!("{e}"))
         .build();
-    let path = stats(&render_passes(&s, integrator("path").as_ref(), 16, K, seed(1100), 0), 8);
-    let bd = stats(&render_passes(&s, bdpt(MisHeuristic::Power).as_ref(), 16, K, seed(1200), 0), 8);
+    let path = stats(&render_passes(&s, integrator("path").as_ref(), 64, K, seed(1100), 0), 8);
+    let bd = stats(&render_passes(&s, bdpt(MisHeuristic::Power).as_ref(), 64, K, seed(1200), 0), 8);
     let v = versus(&bd, &path);
     eprintln!("two lamps, bdpt vs path: {v}");
     assert!(v.passed(), "{v}");
