@@ -4,7 +4,7 @@
 
 use super::chart::{chart_svg, svg_to_png, Axis};
 use super::images::{auto_exposure, compose, error_range, false_colour, pixel_errors, tonemap};
-use super::{ConvergeConfig, ConvergeResults};
+use super::{Clock, ConvergeConfig, ConvergeResults};
 use crate::film::{encode_png, Outputs};
 use anyhow::Result;
 use image::RgbImage;
@@ -184,9 +184,13 @@ fn report_md(r: &ConvergeResults) -> String {
          panels (the mean of each map is the integrator's relMSE):\n\n![per-pixel error](errors.png)\n\n\
          ## Determinism\n\nThe image at a grid checkpoint (1, 2, 3, 4, 5, 6, 7, 8, 10, 11, 13, 16, ... spp; `by_spp = \
          true` in the CSV) depends only on the scene, the seed and spp, so its errors are reproduced bit for bit by \
-         the same command. Seconds are wall-clock measurements and vary from run to run and machine to machine; \
-         the last checkpoint of a time-limited run ends where the budget ran out (`by_spp = false`), so its spp, \
-         and the efficiency computed from it, vary too."
+         the same command, at the same commit and build target. {} are measurements and vary from run to run \
+         and machine to machine; the last checkpoint of a time-limited run ends where the budget ran out \
+         (`by_spp = false`), so its spp, and the efficiency computed from it, vary too.",
+        match r.clock {
+            Clock::Wall => "Seconds (wall clock)",
+            Clock::Cpu => "CPU seconds (all rendering threads)",
+        }
     );
     s
 }
