@@ -329,7 +329,10 @@ fn caustic_and_gap_room_agree_where_sampled() {
         ("caustic.json", "light", 128, Some(1.05)),
         ("caustic.json", "bdpt", 64, None),
         ("gap-room.json", "simple_path", 64, None),
-        ("gap-room.json", "path", 512, Some(1.10)),
+        // 2048: at 512 path's rare bright paths (the light through the gap
+        // by a BSDF sample) failed 4.9e-3 of bootstrap tests at this family
+        // of 2, 3.3 times the bound; 2.0e-3 at 2048 (`examples/test_size.rs`).
+        ("gap-room.json", "path", 2048, Some(1.10)),
         ("gap-room.json", "light", 512, Some(1.10)),
         ("gap-room.json", "bdpt", 128, None),
     ];
