@@ -187,8 +187,9 @@ pub fn effective_mis(name: &str, mis: MisHeuristic) -> MisHeuristic {
 /// are reweighted by 1/(continuation probability). Returns false to stop.
 /// The stopping probability q is on u's grid of 2^-24 (1 - m rounds to it,
 /// and 1 - q is then exact), so a survivor's weight is exactly the inverse
-/// of its chance; it is at most 1 - 2^-24, or a throughput below 2^-25,
-/// for which 1 - m rounds to 1, would never survive (an audit, session 36).
+/// of its chance; it is at most 1 - 2^-24, or a throughput at or below
+/// 2^-25, for which 1 - m rounds to 1, would never survive (an audit,
+/// session 36).
 #[inline]
 pub(crate) fn russian_roulette(beta: &mut SampledSpectrum, eta_scale: f32, depth: u32, u: f32) -> bool {
     const MIN_DEPTH: u32 = 3;
@@ -213,8 +214,8 @@ mod tests {
 
     /// Roulette keeps the expected throughput: over every u the sampler can
     /// give (k 2^-24, k < 2^24), the mean of what survives is the
-    /// throughput, to f32's rounding of one division, from 1e-9 (below
-    /// 2^-25, where 1 - m rounds to 1: without the clamp such a path never
+    /// throughput, to f32's rounding of one division, from 1e-9 (at or
+    /// below 2^-25, 1 - m rounds to 1: without the clamp such a path never
     /// survived and the mean was 0) to just under 1.
     #[test]
     fn roulette_keeps_the_expected_throughput() {

@@ -393,10 +393,12 @@ fn a_rendered_reference_is_accepted() {
     };
     let measure = |reference: &str| measure_to(reference, 2);
     let refused = |reference: &str, spp: u32| {
-        let mut cfg = config("white-room.json", "path", ReferenceSource::File(d.join(reference)), &d.join("o"), 8);
+        let out = d.join("refused");
+        let mut cfg = config("white-room.json", "path", ReferenceSource::File(d.join(reference)), &out, 8);
         cfg.max_spp = Some(spp);
         let e = format!("{:#}", run(&cfg).expect_err("a reference of the run's own samples was accepted"));
         assert!(e.contains(reference) && e.contains("which include the run's seed 11"), "{e}");
+        assert!(!out.exists(), "the refused run wrote {}", out.display());
     };
     render(&["--integrator", "bdpt", "--mis", "balance", "--spp", "4", "--seed", "99", "--out", &path("ref.exr")]);
     let (r, report) = measure("ref.exr");

@@ -764,7 +764,7 @@ impl<'a> Importer<'a> {
                         Dielectric::MIN_INDEX_CONTRAST
                     ),
                 );
-                dielectric.eta = Spectrum::Constant(1.0);
+                dielectric = Dielectric::new(Spectrum::Constant(1.0), alpha, alpha);
             }
             return Bsdf::Dielectric(dielectric);
         }
