@@ -10,6 +10,7 @@ mod scenes;
 
 use prism::integrators::{self, IntegratorOptions, INTEGRATORS};
 use prism::reference::read_reference;
+use prism::scene::{parse_scene, Scene};
 use prism::stats::{render_passes, ColourStats, Verdict};
 use scenes::{scene, seed};
 use std::path::Path;
@@ -43,16 +44,18 @@ fn spp_for(scene: &str, integrator: &str) -> u32 {
     }
 }
 
+/// The colour statistics of K passes of `spp` samples of `integrator` on
+/// `s`, seeds `seed(base)` onwards; the estimator must sample all of `s`.
+fn estimate(s: &Scene, integrator: &str, options: &IntegratorOptions, spp: u32, base: u64) -> ColourStats {
+    let integ = integrators::create(integrator, options).unwrap();
+    assert!(integ.unsamplable(s).is_empty(), "{integrator} cannot sample the scene: {:?}", integ.unsamplable(s));
+    ColourStats::from_passes(&render_passes(s, integ.as_ref(), spp, K, seed(base), 0), RES, RES, BLOCK)
+}
+
+/// `estimate` on a scene file of the suite at the matrix's samples.
 fn stats(scene_file: &str, integrator: &str, max_depth: u32, base_seed: u64) -> ColourStats {
-    let s = scene(scene_file, RES, RES);
-    let integ = integrators::create(integrator, &IntegratorOptions { max_depth, ..Default::default() }).unwrap();
-    assert!(integ.unsamplable(&s).is_empty(), "{integrator} cannot sample {scene_file}: {:?}", integ.unsamplable(&s));
-    ColourStats::from_passes(
-        &render_passes(&s, integ.as_ref(), spp_for(scene_file, integrator), K, seed(base_seed), 0),
-        RES,
-        RES,
-        BLOCK,
-    )
+    let options = IntegratorOptions { max_depth, ..Default::default() };
+    estimate(&scene(scene_file, RES, RES), integrator, &options, spp_for(scene_file, integrator), base_seed)
 }
 
 fn reference(scene_file: &str) -> ColourStats {
@@ -167,10 +170,7 @@ fn agreement_with_smooth_shading_normals() {
     let from = "\"name\": \"light\"";
     let sphere = "\"name\": \"ball\", \"shape\": {\"type\": \"sphere\", \"center\": [278.0, 200.0, 250.0], \"radius\": 150.0, \"subdivisions\": 0, \"smooth\": true}, \"material\": \"white\"}, {\"name\": \"light\"";
     let s = scenes::scene_variant("cornell-box.json", RES, RES, from, sphere);
-    let stats = |name: &str, spp: u32, base: u64| {
-        let integ = integrators::create(name, &IntegratorOptions::default()).unwrap();
-        ColourStats::from_passes(&render_passes(&s, integ.as_ref(), spp, K, seed(base), 0), RES, RES, BLOCK)
-    };
+    let stats = |name: &str, spp: u32, base: u64| estimate(&s, name, &IntegratorOptions::default(), spp, base);
     let path = stats("path", 32, 50);
     let mut failures = Vec::new();
     let mut light = None;
@@ -210,10 +210,8 @@ fn a_two_sided_emitter_agrees_across_integrators() {
         scenes::scene_variant("cornell-box.json", RES, RES, ceiling, &light)
     };
     let (two, one) = (hung(", \"two_sided\": true"), hung(""));
-    let stats = |s: &prism::scene::Scene, name: &str, spp: u32, base: u64| {
-        let integ = integrators::create(name, &IntegratorOptions::default()).unwrap();
-        ColourStats::from_passes(&render_passes(s, integ.as_ref(), spp, K, seed(base), 0), RES, RES, BLOCK)
-    };
+    let stats =
+        |s: &Scene, name: &str, spp: u32, base: u64| estimate(s, name, &IntegratorOptions::default(), spp, base);
     // (At a quarter of these samples bdpt's x1.02 control passed at seed
     // offset 5: p 1.1e-3.)
     let simple = stats(&two, "simple_path", 1024, 60);
@@ -263,17 +261,13 @@ fn point_area_and_environment_lights_together() {
         assert!(text.contains(from), "cornell-box.json has no {from}");
         text = text.replace(from, to);
     }
-    let mut b =
-        prism::scene::parse_scene(&text, "three lights", path.parent().unwrap()).unwrap_or_else(|e| panic!("{e}"));
+    let mut b = parse_scene(&text, "three lights", path.parent().unwrap()).unwrap_or_else(|e| panic!("{e}"));
     b.set_resolution(RES, RES).unwrap();
     let s = b.build();
     assert_eq!(s.lights.len(), 4, "two triangles of the area light, the point light and the sky");
-    let stats = |name: &str, spp: u32, base: u64| {
-        let integ = integrators::create(name, &IntegratorOptions::default()).unwrap();
-        // Light tracing would warn of sky in view, which it cannot show.
-        assert!(integ.unsamplable(&s).is_empty(), "{name}: {:?}", integ.unsamplable(&s));
-        ColourStats::from_passes(&render_passes(&s, integ.as_ref(), spp, K, seed(base), 0), RES, RES, BLOCK)
-    };
+    // (`estimate` asserts that no estimator warns: light tracing would of
+    // sky in view, which it cannot show.)
+    let stats = |name: &str, spp: u32, base: u64| estimate(&s, name, &IntegratorOptions::default(), spp, base);
     let path = stats("path", 128, 70);
     let mut failures = Vec::new();
     for (name, spp, base) in [("light", 512, 90), ("bdpt", 32, 110)] {
@@ -309,10 +303,7 @@ fn point_area_and_environment_lights_together() {
 #[test]
 fn agreement_across_one_rough_glass_interface() {
     let stats = |name: &str, spp: u32, flipped: bool, base: u64| {
-        let s = one_interface(flipped);
-        let integ = integrators::create(name, &IntegratorOptions::default()).unwrap();
-        assert!(integ.unsamplable(&s).is_empty(), "{name}: {:?}", integ.unsamplable(&s));
-        ColourStats::from_passes(&render_passes(&s, integ.as_ref(), spp, K, seed(base), 0), RES, RES, BLOCK)
+        estimate(&one_interface(flipped), name, &IntegratorOptions::default(), spp, base)
     };
     let path = stats("path", 32, false, 60);
     let mut failures = Vec::new();
@@ -331,7 +322,7 @@ fn agreement_across_one_rough_glass_interface() {
 
 /// The scene of `agreement_across_one_rough_glass_interface`: the glass
 /// quad's normal (its outside) points up, to the light, unless `flipped`.
-fn one_interface(flipped: bool) -> prism::scene::Scene {
+fn one_interface(flipped: bool) -> Scene {
     use glam::Vec3A;
     use prism::camera::Camera;
     use prism::materials::{Bsdf, Dielectric, Diffuse};
