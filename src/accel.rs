@@ -11,7 +11,10 @@
 //!   double-precision fallback (`lanes::watertight`), on four triangles at
 //!   once (one per SIMD lane, `TriangleBlock`). A ray through a shared edge
 //!   or vertex hits at least one of the triangles that share it, whatever
-//!   the rounding.
+//!   the rounding. A hit is taken when its t is certainly positive: beyond
+//!   t's error bound (pbrt-v4's), or, within it, by the sign of the plane
+//!   distance in f64 with a bound of its own (`lanes::near_t_in_f64`), so
+//!   a ray leaving an object just above a large floor still meets it.
 //! - Packets: eight coherent rays at once (`packet.rs`, `intersect8`), each
 //!   lane finding what its ray finds alone.
 //! - Node: obvhs's own child-box test clamps t_near to an absolute 1e-4 (culling
@@ -549,6 +552,7 @@ fn permute(v: Vec3A, k: &[u32; 4]) -> Vec3A {
 /// the node test.
 struct PreparedRay {
     o: Vec3A,
+    d: Vec3A,
     /// The axis permutation: kz the dominant axis of d, (kx, ky) the others,
     /// swapped if d[kz] < 0 so the projected winding (sign of det) is kept.
     k: [usize; 3],
@@ -595,6 +599,7 @@ impl PreparedRay {
         let octant = REVERSED[(!inv.is_negative_bitmask() & 7) as usize];
         Some(Self {
             o: ray.o,
+            d,
             k,
             o_k,
             s: Vec3A::new(d_k.x * sz, d_k.y * sz, sz),
@@ -613,7 +618,9 @@ impl PreparedRay {
     /// are tested against the `t_max` of the call and the few that pass are
     /// checked again against the shortened one, which accepts the same hits
     /// as testing each against it (t_max only shrinks, and a rounded product
-    /// t_max |det| is monotonic in t_max).
+    /// t_max |det| is monotonic in t_max). A lane whose t is within its
+    /// rounding error of 0 (`Candidates::near`) takes its t from the f64
+    /// test, if that finds it ahead.
     #[inline(always)]
     fn intersect_block(&self, block: &TriangleBlock, lanes: u32, t_max: &mut f32) -> Option<(u32, f32, f32)> {
         // (`min` tells the compiler the rows are in bounds.)
@@ -628,20 +635,31 @@ impl PreparedRay {
         let x = [sheared(kx, self.o_k.x, sx, 0), sheared(kx, self.o_k.x, sx, 1), sheared(kx, self.o_k.x, sx, 2)];
         let y = [sheared(ky, self.o_k.y, sy, 0), sheared(ky, self.o_k.y, sy, 1), sheared(ky, self.o_k.y, sy, 2)];
         let c = lanes::watertight(x, y, z, splat(sz), splat(*t_max), lanes)?;
-        let mut candidates = c.mask;
-        let (t, ts, ds) = (c.t.to_array(), c.ts.to_array(), c.ds.to_array());
+        let mut candidates = c.mask | c.near;
+        let (mut t, ts, ds) = (c.t.to_array(), c.ts.to_array(), c.ds.to_array());
         let (b1, b2) = (c.b1.to_array(), c.b2.to_array());
         let mut hit = None;
         while candidates != 0 {
             let lane = 31 - candidates.leading_zeros();
             candidates &= !(1 << lane);
             let l = lane as usize;
-            if ts[l] < *t_max * ds[l] && t[l] < *t_max {
+            let sure = c.mask >> lane & 1 != 0;
+            let taken = if sure { ts[l] < *t_max * ds[l] } else { self.near_hit(block, l, &mut t[l]) };
+            if taken && t[l] < *t_max {
                 *t_max = t[l];
                 hit = Some((lane, b1[l], b2[l]));
             }
         }
         hit
+    }
+
+    /// Whether the triangle in `lane` of `block`, which the ray meets
+    /// within the rounding error of its t from the origin, is certainly
+    /// ahead of it (`lanes::near_t_in_f64`), with `t` set to its distance.
+    #[cold]
+    #[inline(never)]
+    fn near_hit(&self, block: &TriangleBlock, lane: usize, t: &mut f32) -> bool {
+        lanes::near_t_in_f64(self.o, self.d, &block.vertices(lane)).map(|near| *t = near).is_some()
     }
 }
 

@@ -687,3 +687,126 @@ fn a_point_in_a_surfaces_plane_sees_what_its_rays_see() {
         assert!(!blocked.unoccluded(blocked_ceiling, light), "pair {i}: the blocker let it through");
     }
 }
+
+/// An object resting on a large floor: a ray leaving it just above the
+/// floor and heading down meets the floor at a t far below the f32 test's
+/// bound on the error of t, which grows with the floor's size (pbrt-v4's
+/// delta_t, a few 1e-6 of the distance to its vertices: 4e-3 at a floor of
+/// 1e3). Such hits are resolved in f64 and must be found, at their
+/// distance, by closest hit, occlusion and packets, on a floor in the
+/// axes' planes (exact vertices) and a tilted one (rounded vertices). A ray
+/// heading up from the same point meets nothing, nor does one starting
+/// exactly on the floor (t = 0 is no hit).
+#[test]
+fn hits_within_rounding_of_the_origin_are_found_on_large_floors() {
+    let mut r = Rand::new(23);
+    let tilt = Affine3A::from_axis_angle(glam::Vec3::new(1.0, 0.2, 0.5).normalize(), 0.3);
+    let (mut near, mut rays) = (0, 0);
+    for size in [1.0f32, 1e2, 1e3, 1e4, 1e5] {
+        for place in [Affine3A::IDENTITY, tilt] {
+            let c = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)].map(|(x, z)| Vec3A::new(x, 0.0, z) * size);
+            let mut floor = Mesh::quad([c[0], c[3], c[2], c[1]]);
+            floor.transform(place);
+            let tris = tris_of(&floor);
+            let accel = Accel::build(&tris);
+            let ctx = |i: usize| format!("floor {size:e}, {}, ray {i}", if place == tilt { "tilted" } else { "level" });
+            let mut batch = Vec::new();
+            for i in 0..2000 {
+                // From 1e-7 to 1e-2 above the floor, near the world origin,
+                // 0.5 to 60 degrees below the horizon.
+                let h = if i % 50 == 0 { 0.0 } else { 10f32.powf(r.range(-7.0, -2.0)) };
+                let (elevation, phi) = (r.range(0.5, 60.0).to_radians(), r.range(0.0, std::f32::consts::TAU));
+                let w = Vec3A::new(phi.cos() * elevation.cos(), -elevation.sin(), phi.sin() * elevation.cos());
+                let o = Vec3A::new(r.range(-1.0, 1.0), h, r.range(-1.0, 1.0));
+                let (w, o) = (place.transform_vector3a(w), place.transform_point3a(o));
+                // The rounded origin's height above both triangles' planes
+                // (in f64, exact to ~1e-16 of the size): the tilted floor's
+                // origins may end up below it.
+                let height = tris
+                    .iter()
+                    .map(|t| plane_height(t, o))
+                    .fold((f64::MAX, f64::MIN), |(lo, hi), s| (lo.min(s), hi.max(s)));
+                if h == 0.0 && place == Affine3A::IDENTITY {
+                    for on in [Ray::new(o, w), Ray::new(o, -w)] {
+                        assert!(accel.intersect(&on, f32::INFINITY).is_none(), "{}: hit from on the floor", ctx(i));
+                        assert!(!accel.occluded(&on, f32::INFINITY), "{}", ctx(i));
+                    }
+                    continue;
+                }
+                // The ray towards the floor, and the one away from it.
+                let (toward, away) = match height {
+                    (lo, _) if lo > 1e-12 * size as f64 => (Ray::new(o, w), Ray::new(o, -w)),
+                    (_, hi) if hi < -1e-12 * size as f64 => (Ray::new(o, -w), Ray::new(o, w)),
+                    _ => continue,
+                };
+                rays += 1;
+                assert!(accel.intersect(&away, f32::INFINITY).is_none(), "{}: the ray away hit", ctx(i));
+                assert!(!accel.occluded(&away, f32::INFINITY), "{}: the ray away is occluded", ctx(i));
+                let truth = tris.iter().filter_map(|t| reference_f64(&toward, t)).find(|&(_, m)| m > 1e-3);
+                let Some((t, _)) = truth else { continue };
+                let (down, h) = (toward, height.0.abs());
+                let hit = accel.intersect(&down, f32::INFINITY);
+                let got = hit.unwrap_or_else(|| panic!("{}: missed the floor {t:e} away, {h:e} above it", ctx(i)));
+                // Within the f32 test's error (a few 1e-6 of the size along the
+                // floor's normal) where it was certain.
+                let tolerance = 1e-3 * t + 1e-5 * size as f64 / elevation.sin() as f64;
+                assert!((got.t as f64 - t).abs() <= tolerance, "{}: t {} vs {t:e}", ctx(i), got.t);
+                assert!(accel.occluded(&down, f32::INFINITY), "{}: not occluded", ctx(i));
+                near += usize::from(t < 1e-5 * size as f64);
+                batch.push((down, got));
+            }
+            for chunk in batch.chunks_exact(8) {
+                let packet: [Ray; 8] = std::array::from_fn(|l| chunk[l].0);
+                let hits = accel.intersect8(&packet, [f32::INFINITY; 8], 0xff);
+                for (l, h) in hits.iter().enumerate() {
+                    let h = h.unwrap_or_else(|| panic!("floor {size:e}: the packet missed {:?}", chunk[l].0));
+                    assert_eq!((h.t, h.prim), (chunk[l].1.t, chunk[l].1.prim), "floor {size:e}: packet vs single ray");
+                }
+            }
+        }
+    }
+    eprintln!("{near} of {rays} rays met the floor within 1e-5 of its size");
+    assert!(near > 2000, "too few rays meet the floor near their origin ({near})");
+}
+
+/// The signed distance of `p` from the plane of `tri` (positive on the side
+/// its winding's normal points to), in f64.
+fn plane_height(tri: &[Vec3A; 3], p: Vec3A) -> f64 {
+    let [a, b, c] = tri.map(|v| v.as_dvec3());
+    (b - a).cross(c - a).normalize().dot(p.as_dvec3() - a)
+}
+
+/// A ray from a point exactly in a triangle's plane never hits it (t = 0 is
+/// no hit), though the plane distance computed in f64 for hits within
+/// rounding of the origin is not exactly 0: integer vertices up to 2^22
+/// make the normal exact in f64 and its products with the origin's offset
+/// (up to 2^70) round. Only the f64 test's error bound
+/// (`near_t_in_f64`) tells such a residue from a hit.
+#[test]
+fn rays_from_a_point_exactly_in_a_plane_never_hit_it() {
+    let mut r = Rand::new(29);
+    let mut int = |bits: u32| ((r.0.next_u64() >> (64 - bits)) as i64 - (1i64 << (bits - 1))) as f32;
+    let mut tested = 0;
+    for i in 0..2000 {
+        let p0 = Vec3A::new(int(23), int(23), int(23));
+        let (a, b) = (Vec3A::new(int(21), int(21), int(21)) * 4.0, Vec3A::new(int(21), int(21), int(21)) * 4.0);
+        let tri = [p0, p0 + a, p0 + b];
+        if is_degenerate(&tri) {
+            continue;
+        }
+        // Barycentrics (1/2, 1/4, 1/4), every coordinate an integer.
+        let o = p0 + (a + b) / 4.0;
+        let exact = tri[0].as_dvec3() + (tri[1] - tri[0]).as_dvec3() / 4.0 + (tri[2] - tri[0]).as_dvec3() / 4.0;
+        assert_eq!(o.as_dvec3(), exact, "construction: the origin must be exact");
+        let accel = Accel::build(&[tri]);
+        let rays: [Ray; 8] = std::array::from_fn(|_| Ray::new(o, Vec3A::new(int(12), int(12), int(12))));
+        for ray in &rays {
+            assert!(accel.intersect(ray, f32::INFINITY).is_none(), "triangle {i}: hit from its plane: {tri:?} {ray:?}");
+            assert!(!accel.occluded(ray, f32::INFINITY), "triangle {i}: {ray:?}");
+        }
+        let packet = accel.intersect8(&rays, [f32::INFINITY; 8], 0xff);
+        assert!(packet.iter().all(Option::is_none), "triangle {i}: a packet lane hit from the plane");
+        tested += 8;
+    }
+    assert!(tested > 15_000, "only {tested} rays");
+}

@@ -6,7 +6,7 @@
 //! either way.
 
 use crate::geometry::gamma;
-use glam::Vec4;
+use glam::{DVec3, Vec3A, Vec4};
 use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Sub};
 use wide::f32x8;
 
@@ -125,12 +125,16 @@ impl Lanes for f32x8 {
     }
 }
 
-/// The lanes that pass the watertight test, with their distances and the
-/// barycentrics of the second and third vertices. `ts` and `ds` are t
+/// The lanes that pass the watertight test, and those (`near`) that do but
+/// for the sign of t, with their distances and the barycentrics of the
+/// second and third vertices. `ts` and `ds` are t
 /// before the division, signed by det, and |det|: a caller whose t_max
 /// shrank since the test can check a lane again (`ts < t_max ds`).
 pub(super) struct Candidates<L> {
     pub mask: u32,
+    /// Lanes inside the triangle whose t is within its rounding error of 0:
+    /// a hit or not as `near_t_in_f64` finds.
+    pub near: u32,
     pub t: L,
     pub b1: L,
     pub b2: L,
@@ -181,7 +185,9 @@ pub(super) fn watertight<L: Lanes>(
     // hold (and t_max * 0 is NaN for an infinite t_max).
     let (ts, ds) = (L::select(det.lt(L::ZERO), -t_scaled, t_scaled), det.abs());
     let mut mask = L::bitmask(ts.gt(L::ZERO) & ts.lt(t_max * ds)) & inside;
-    if mask == 0 {
+    // A lane behind the origin (ts <= 0) may hide a hit just ahead (below).
+    let behind = inside & !L::bitmask(ts.gt(L::ZERO));
+    if mask | behind == 0 {
         return None;
     }
     let rcp = L::splat(1.0) / det;
@@ -190,9 +196,49 @@ pub(super) fn watertight<L: Lanes>(
     // error: accept it only when conservatively positive, t > delta_t
     // (pbrt-v4 section 6.8.7, the bounds of its `IntersectTriangle`), so a
     // ray leaving a surface never re-hits it at t ~ 0 whatever the scene's
-    // scale (see `offset_ray_origin`).
-    mask &= L::bitmask(t.gt(delta_t(&x, &y, &z, sz, &e, rcp)));
-    Some(Candidates { mask, t, b1: e[1] * rcp, b2: e[2] * rcp, ts, ds })
+    // scale (see `offset_ray_origin`). Where t is within its error of 0
+    // (|t| <= delta_t, which grows with the vertices' distance: a few 1e-6
+    // of a floor's size) the caller settles its sign in f64
+    // (`near_t_in_f64`), so a ray leaving an object just above a large
+    // floor still meets it.
+    let delta = delta_t(&x, &y, &z, sz, &e, rcp);
+    let sure = L::bitmask(t.gt(delta));
+    let near = ((mask & !sure) | behind) & L::bitmask(t.gt(-delta));
+    mask &= sure;
+    Some(Candidates { mask, near, t, b1: e[1] * rcp, b2: e[2] * rcp, ts, ds })
+}
+
+/// The distance along the ray (o, d) to the plane of `tri` when it is
+/// certainly positive, else None: t = N.(p0 - o) / N.d with
+/// N = (p1 - p0) x (p2 - p0), in f64 from the f32 inputs.
+///
+/// Error bound (Higham's gamma_n = n u / (1 - n u), u = 2^-53): with A, B, V
+/// the exact differences p1 - p0, p2 - p0, p0 - o and each computed one off
+/// by a factor (1 + delta), |delta| <= u, every component of the computed N
+/// is within gamma_4 M of the exact one, M = |A| x |B| taken term by term
+/// (|A_y B_z| + |A_z B_y|, ...), so |N| <= (1 + gamma_4) M; the dot
+/// products add gamma_4 (V rounded, a product, two sums) and gamma_3 (d is
+/// exact) of sum |N_i||V_i| and sum |N_i||d_i|. Together both computed
+/// values lie within gamma_9 sum M_i |V_i| and gamma_9 sum M_i |d_i| of
+/// N.V and N.d; the bounds, themselves evaluated with a few roundings, are
+/// doubled. Beyond them both signs are certain, and t > 0 exactly.
+pub(super) fn near_t_in_f64(o: Vec3A, d: Vec3A, tri: &[Vec3A; 3]) -> Option<f32> {
+    let [p0, p1, p2] = tri.map(|v| v.as_dvec3());
+    let (a, b, v, d) = (p1 - p0, p2 - p0, p0 - o.as_dvec3(), d.as_dvec3());
+    let (aa, ba) = (a.abs(), b.abs());
+    let m = DVec3::new(aa.y * ba.z + aa.z * ba.y, aa.z * ba.x + aa.x * ba.z, aa.x * ba.y + aa.y * ba.x);
+    let n = a.cross(b);
+    let (num, den) = (n.dot(v), n.dot(d));
+    let bound = |w: DVec3| 2.0 * gamma64(9) * m.dot(w.abs());
+    let sign = den.signum();
+    let t = (num / den) as f32;
+    (den.abs() > bound(d) && num * sign > bound(v) && t > 0.0).then_some(t)
+}
+
+/// Higham's gamma_n in f64.
+const fn gamma64(n: u32) -> f64 {
+    let nu = n as f64 * f64::EPSILON * 0.5;
+    nu / (1.0 - nu)
 }
 
 /// Bound on the rounding error of t, per lane, from the sheared vertex

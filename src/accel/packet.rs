@@ -19,9 +19,10 @@
 //! as fast as the lanes), so `path` traces its camera rays this way and
 //! nothing else does.
 
-use super::lanes::watertight;
+use super::lanes::{near_t_in_f64, watertight, Candidates, Lanes};
 use super::{Accel, GroupStack, SLACK};
 use crate::geometry::Ray;
+use glam::Vec3A;
 use obvhs::cwbvh::node::CwBvhNode;
 use wide::{f32x8, i32x8};
 
@@ -29,8 +30,10 @@ use wide::{f32x8, i32x8};
 pub const LANES: usize = 8;
 
 /// A packet's per-lane ray constants (`PreparedRay`'s, lane by lane).
-struct PreparedPacket {
+struct PreparedPacket<'a> {
     o: [f32x8; 3],
+    /// Each lane's ray as given, for the hits that need f64.
+    rays: &'a [Ray; LANES],
     inv: [f32x8; 3],
     abs_inv: [f32x8; 3],
     o_k: [f32x8; 3],
@@ -54,10 +57,10 @@ fn bias(s: u32) -> i32 {
     (s ^ 0x8000_0000) as i32
 }
 
-impl PreparedPacket {
+impl<'a> PreparedPacket<'a> {
     /// `PreparedRay::new` in every lane at once, with the same operations
     /// in the same order (so the same constants, bit for bit).
-    fn new(accel: &Accel, rays: &[Ray; LANES], active: u32) -> Self {
+    fn new(accel: &Accel, rays: &'a [Ray; LANES], active: u32) -> Self {
         // Axis k of every lane's origin and direction.
         let o = [0, 1, 2].map(|k| f32x8::new(std::array::from_fn(|l| rays[l].o[k])));
         let d = [0, 1, 2].map(|k| f32x8::new(std::array::from_fn(|l| rays[l].d[k])));
@@ -98,6 +101,7 @@ impl PreparedPacket {
         });
         Self {
             o,
+            rays,
             inv,
             abs_inv: inv.map(f32x8::abs),
             o_k,
@@ -244,7 +248,7 @@ impl Hits {
     }
 }
 
-impl PreparedPacket {
+impl PreparedPacket<'_> {
     /// The watertight test (`lanes::watertight`) of the triangle in `slot`
     /// against the rays of `lanes`, each lane with its own axis
     /// permutation; returns the lanes whose best hit it became.
@@ -260,9 +264,12 @@ impl PreparedPacket {
         let z = [0, 1, 2].map(|j| pick(2, j) - self.o_k[2]);
         let x = [0, 1, 2].map(|j| (pick(0, j) - self.o_k[0]) - sx * z[j]);
         let y = [0, 1, 2].map(|j| (pick(1, j) - self.o_k[1]) - sy * z[j]);
-        let Some(c) = watertight(x, y, z, sz, hits.t, lanes) else {
+        let Some(mut c) = watertight(x, y, z, sz, hits.t, lanes) else {
             return 0;
         };
+        if c.near != 0 {
+            c = self.settle_near(c, &v);
+        }
         let won = c.t.simd_lt(hits.t).to_bitmask() & c.mask;
         if won == 0 {
             return 0;
@@ -275,6 +282,21 @@ impl PreparedPacket {
         hits.b2 = m.select(c.b2, hits.b2);
         hits.slot = i32x8::new(ones.map(|b| b as i32)).select(i32x8::splat(slot as i32), hits.slot);
         won
+    }
+
+    /// `c` with the lanes whose rays meet the triangle `v` within the
+    /// rounding error of their t from the origin and certainly ahead of it
+    /// (`near_t_in_f64`) added, at that distance.
+    #[cold]
+    #[inline(never)]
+    fn settle_near(&self, mut c: Candidates<f32x8>, v: &[Vec3A; 3]) -> Candidates<f32x8> {
+        for l in (0..LANES).filter(|l| c.near >> l & 1 != 0) {
+            if let Some(t) = near_t_in_f64(self.rays[l].o, self.rays[l].d, v) {
+                c.t.set_lane(l, t);
+                c.mask |= 1 << l;
+            }
+        }
+        c
     }
 }
 
