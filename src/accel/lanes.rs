@@ -25,6 +25,7 @@ pub(super) trait Lanes:
     fn eq(self, other: Self) -> Self::Mask;
     fn lt(self, other: Self) -> Self::Mask;
     fn gt(self, other: Self) -> Self::Mask;
+    fn ge(self, other: Self) -> Self::Mask;
     fn select(mask: Self::Mask, if_true: Self, if_false: Self) -> Self;
     fn bitmask(mask: Self::Mask) -> u32;
     fn lane(self, l: usize) -> f32;
@@ -58,6 +59,10 @@ impl Lanes for Vec4 {
     #[inline(always)]
     fn gt(self, other: Self) -> Self::Mask {
         self.cmpgt(other)
+    }
+    #[inline(always)]
+    fn ge(self, other: Self) -> Self::Mask {
+        self.cmpge(other)
     }
     #[inline(always)]
     fn select(mask: Self::Mask, if_true: Self, if_false: Self) -> Self {
@@ -104,6 +109,10 @@ impl Lanes for f32x8 {
     #[inline(always)]
     fn gt(self, other: Self) -> Self::Mask {
         self.simd_gt(other)
+    }
+    #[inline(always)]
+    fn ge(self, other: Self) -> Self::Mask {
+        self.simd_ge(other)
     }
     #[inline(always)]
     fn select(mask: Self::Mask, if_true: Self, if_false: Self) -> Self {
@@ -180,14 +189,12 @@ pub(super) fn watertight<L: Lanes>(
     let t_scaled = (e[0] * (z[0] * sz) + e[1] * (z[1] * sz)) + e[2] * (z[2] * sz);
     // Range test on t = t_scaled / det before dividing (sec. 3.4), with
     // the sign of det folded in (the paper's xorf; for det = -0 or a
-    // negative NaN the two differ, and the lane fails either way); written
-    // so that NaN fails. It also rejects det = 0: 0 < ts < t_max * 0 cannot
-    // hold (and t_max * 0 is NaN for an infinite t_max).
+    // negative NaN the two differ, and the lane fails either way): lanes
+    // at or beyond t_max are done. Those behind the origin (ts <= 0) stay,
+    // as rounding may hide a hit just ahead (below).
     let (ts, ds) = (L::select(det.lt(L::ZERO), -t_scaled, t_scaled), det.abs());
-    let mut mask = L::bitmask(ts.gt(L::ZERO) & ts.lt(t_max * ds)) & inside;
-    // A lane behind the origin (ts <= 0) may hide a hit just ahead (below).
-    let behind = inside & !L::bitmask(ts.gt(L::ZERO));
-    if mask | behind == 0 {
+    let live = inside & !L::bitmask(ts.ge(t_max * ds));
+    if live == 0 {
         return None;
     }
     let rcp = L::splat(1.0) / det;
@@ -196,15 +203,14 @@ pub(super) fn watertight<L: Lanes>(
     // error: accept it only when conservatively positive, t > delta_t
     // (pbrt-v4 section 6.8.7, the bounds of its `IntersectTriangle`), so a
     // ray leaving a surface never re-hits it at t ~ 0 whatever the scene's
-    // scale (see `offset_ray_origin`). Where t is within its error of 0
-    // (|t| <= delta_t, which grows with the vertices' distance: a few 1e-6
-    // of a floor's size) the caller settles its sign in f64
-    // (`near_t_in_f64`), so a ray leaving an object just above a large
-    // floor still meets it.
+    // scale (see `offset_ray_origin`); written so that NaN fails, which
+    // rejects det = 0 too. Where t is within its error of 0 (|t| <=
+    // delta_t, which grows with the vertices' distance: a few 1e-6 of a
+    // floor's size) the caller settles its sign in f64 (`near_t_in_f64`),
+    // so a ray leaving an object just above a large floor still meets it.
     let delta = delta_t(&x, &y, &z, sz, &e, rcp);
-    let sure = L::bitmask(t.gt(delta));
-    let near = ((mask & !sure) | behind) & L::bitmask(t.gt(-delta));
-    mask &= sure;
+    let mask = L::bitmask(t.gt(delta)) & live;
+    let near = L::bitmask(t.gt(-delta)) & live & !mask;
     Some(Candidates { mask, near, t, b1: e[1] * rcp, b2: e[2] * rcp, ts, ds })
 }
 
