@@ -422,8 +422,9 @@ pub struct IntegratorResult {
     /// Samples per wall second.
     pub samples_per_second: f64,
     /// Least-squares slope of ln relMSE against ln spp over the grid
-    /// checkpoints with spp >= 4 (-1 for an unbiased estimator, flatter once
-    /// bias or the reference's own noise dominates).
+    /// checkpoints with spp >= 4 and, where the reference's own noise is
+    /// known, a relMSE of at least ten times it (`spp_slope`): -1 for an
+    /// unbiased estimator, flatter where a bias dominates.
     pub slope: Option<f64>,
     pub dropped: DroppedSamples,
 }
@@ -560,6 +561,9 @@ pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
     }
 
     let info = with_noise_floor(info, &results, max_depth);
+    for x in &mut results {
+        x.slope = spp_slope(&x.checkpoints, info.noise_floor);
+    }
     notes.extend(results.iter().flat_map(|x| result_notes(cfg, x, &info)));
     let scene_comment = std::fs::read_to_string(&cfg.scene)
         .ok()
@@ -801,7 +805,7 @@ fn converge_one(
     }
     let last = *checkpoints.last().context("no checkpoint rendered")?;
     bar.finish();
-    let slope = fit_slope(checkpoints.iter().filter(|c| c.by_spp && c.spp >= 4).map(|c| (c.spp as f64, c.rel_mse)));
+    let slope = spp_slope(&checkpoints, None);
     let result = IntegratorResult {
         label: spec.label.clone(),
         integrator: spec.name.clone(),
@@ -835,6 +839,16 @@ fn efficiency(rel_mse: f64, seconds: f64, clock: Clock) -> f64 {
     } else {
         f64::NAN
     }
+}
+
+/// The slope of ln relMSE against ln spp over the grid checkpoints from 4
+/// spp whose relMSE is at least ten times `floor`, the reference's own
+/// noise, where that is known: measured against a noisy reference relMSE
+/// is V/n + floor, which flattens towards slope 0 near the floor whatever
+/// the estimator (at ten times the floor its local slope is -0.9).
+fn spp_slope(checkpoints: &[Checkpoint], floor: Option<f64>) -> Option<f64> {
+    let clear = |c: &Checkpoint| floor.is_none_or(|f| c.rel_mse >= 10.0 * f);
+    fit_slope(checkpoints.iter().filter(|c| c.by_spp && c.spp >= 4 && clear(c)).map(|c| (c.spp as f64, c.rel_mse)))
 }
 
 /// Least-squares slope of ln y against ln x (None with fewer than 3 points).
@@ -881,6 +895,30 @@ mod tests {
         assert!(p("bdpt:magic", &[]).is_err());
         assert!(p("nosuch", &[]).is_err());
         assert!(p("path,path", &[]).is_err());
+    }
+
+    /// Against a noisy reference relMSE is V/n + floor: the fit over every
+    /// checkpoint flattens (here, 4 to 4096 spp with the floor reached at
+    /// 300, to -0.64); the one over checkpoints at ten times the floor and
+    /// more stays within 0.1 of -1 (-0.96 here).
+    #[test]
+    fn the_spp_slope_leaves_out_the_reference_noise_floor() {
+        let checkpoint = |spp: u32| Checkpoint {
+            spp,
+            seconds: 1.0,
+            cpu_seconds: None,
+            rel_mse: 3.0 / spp as f64 + 1e-2,
+            mse: 0.0,
+            mae: 0.0,
+            by_spp: true,
+        };
+        let grid = std::iter::successors(Some(1), |&n| (n < 4096).then(|| next_grid_spp(n)));
+        let checkpoints: Vec<Checkpoint> = grid.map(checkpoint).collect();
+        let all = spp_slope(&checkpoints, None).unwrap();
+        let clear = spp_slope(&checkpoints, Some(1e-2)).unwrap();
+        eprintln!("slope over every checkpoint {all:.3}, at ten times the floor {clear:.3}");
+        assert!(all > -0.8, "{all}");
+        assert!((-1.0..=-0.88).contains(&clear), "{clear}");
     }
 
     #[test]

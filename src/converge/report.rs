@@ -157,8 +157,8 @@ fn report_md(r: &ConvergeResults) -> String {
     let _ = writeln!(
         s,
         "Efficiency = 1 / (relMSE x {unit} of rendering). Slope: least-squares slope of log relMSE against log spp \
-         over the checkpoints from 4 spp (-1 for an unbiased estimator until the reference's own noise or a bias \
-         flattens it).\n"
+         over the checkpoints from 4 spp whose relMSE is at least ten times the reference's own noise, where that \
+         is known (-1 for an unbiased estimator, flatter where a bias dominates).\n"
     );
     if r.integrators.iter().any(|x| !x.warnings.is_empty()) {
         let _ = writeln!(s, "(!) marks integrators that cannot sample some paths of this scene:\n");
