@@ -619,8 +619,10 @@ impl PreparedRay {
     /// checked again against the shortened one, which accepts the same hits
     /// as testing each against it (t_max only shrinks, and a rounded product
     /// t_max |det| is monotonic in t_max). A lane whose t is within its
-    /// rounding error of 0 (`Candidates::near`) takes its t from the f64
-    /// test, if that finds it ahead.
+    /// rounding error of 0 (`Candidates::near`) passes the same range test
+    /// and then takes its t from the f64 test, if that finds it ahead (so
+    /// a segment shorter than that error, whose f32 t reaches t_max, still
+    /// misses what lies within it).
     #[inline(always)]
     fn intersect_block(&self, block: &TriangleBlock, lanes: u32, t_max: &mut f32) -> Option<(u32, f32, f32)> {
         // (`min` tells the compiler the rows are in bounds.)
@@ -644,7 +646,7 @@ impl PreparedRay {
             candidates &= !(1 << lane);
             let l = lane as usize;
             let sure = c.mask >> lane & 1 != 0;
-            let taken = if sure { ts[l] < *t_max * ds[l] } else { self.near_hit(block, l, &mut t[l]) };
+            let taken = ts[l] < *t_max * ds[l] && (sure || self.near_hit(block, l, &mut t[l]));
             if taken && t[l] < *t_max {
                 *t_max = t[l];
                 hit = Some((lane, b1[l], b2[l]));

@@ -776,8 +776,9 @@ fn floor_self_hits(k: f32) -> (usize, usize, f32) {
         let p = p * k;
         n += 1;
         // The floor's vertices have y = 0, so p has no error in y: the
-        // origin stays on the plane and only the intersection test's
-        // conservative t (src/accel.rs) keeps the ray from re-hitting it.
+        // origin stays on the plane and only the intersection test's taking
+        // hits certainly ahead (src/accel/lanes.rs: t > delta_t, or the
+        // plane distance in f64, exactly 0 here) keeps the ray off it.
         let e = Vec3A::new(p.x.abs(), 0.0, p.z.abs()) * prism::geometry::gamma(7);
         if let Some(si) = s.intersect(&Ray::new(offset_ray_origin(p, e, Vec3A::Y, w), w)) {
             if si.ng.y > 0.9 && si.p.y.abs() <= 1e-3 * k {
@@ -810,8 +811,8 @@ fn rays_leaving_a_surface_do_not_hit_it_again() {
 /// (p.y has no error, so `offset_ray_origin` moves it by 0 in y); the
 /// watertight test's rounding error in t grows with |x|, |z|. With only
 /// t > 0 accepted, about 9% of these rays re-hit the floor at scale 1e3; the
-/// conservative t > delta_t of src/accel.rs (pbrt-v4 section 6.8.7) must
-/// reject every one.
+/// conservative t > delta_t of src/accel/lanes.rs (pbrt-v4 section 6.8.7),
+/// and within it the plane distance in f64 (0 here), must reject every one.
 #[test]
 fn rays_leaving_a_surface_do_not_hit_it_again_at_large_scales() {
     assert_no_self_hits(&[1e2, 1e3, 1e4, 1e5]);
