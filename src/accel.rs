@@ -658,8 +658,7 @@ impl PreparedRay {
     /// Whether the triangle in `lane` of `block`, which the ray meets
     /// within the rounding error of its t from the origin, is certainly
     /// ahead of it (`lanes::near_t_in_f64`), with `t` set to its distance.
-    #[cold]
-    #[inline(never)]
+    #[inline(always)]
     fn near_hit(&self, block: &TriangleBlock, lane: usize, t: &mut f32) -> bool {
         lanes::near_t_in_f64(self.o, self.d, &block.vertices(lane)).map(|near| *t = near).is_some()
     }

@@ -287,8 +287,7 @@ impl PreparedPacket<'_> {
     /// `c` with the lanes whose rays meet the triangle `v` within the
     /// rounding error of their t from the origin and certainly ahead of it
     /// (`near_t_in_f64`) added, at that distance.
-    #[cold]
-    #[inline(never)]
+    #[inline(always)]
     fn settle_near(&self, mut c: Candidates<f32x8>, v: &[Vec3A; 3]) -> Candidates<f32x8> {
         for l in (0..LANES).filter(|l| c.near >> l & 1 != 0) {
             if let Some(t) = near_t_in_f64(self.rays[l].o, self.rays[l].d, v) {
