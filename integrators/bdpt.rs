@@ -430,6 +430,7 @@ struct Ends {
 }
 
 impl Ends {
+    #[inline(always)]
     fn new(light: &[Vertex], camera: &[Vertex], sampled: Option<&Vertex>, s: usize, t: usize) -> Self {
         let light = match s {
             0 => End::NONE,
