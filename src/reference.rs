@@ -8,7 +8,7 @@ use crate::film::{read_exr, DroppedSamples, Film, Outputs};
 use crate::integrators::Integrator;
 use crate::render::RenderOptions;
 use crate::scene::Scene;
-use crate::stats::{luminance, pixel_mean_variance, render_pass_films, BlockStats, ColourStats};
+use crate::stats::{luminance, pixel_mean_variance, reference_noise, render_pass_films, BlockStats, ColourStats};
 use anyhow::{ensure, Context, Result};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -49,6 +49,12 @@ pub struct ReferenceMeta {
     /// Absent in references made before it was recorded.
     #[serde(default)]
     pub block_y_stderr: Vec<f64>,
+    /// The relMSE its own noise adds to a measurement against it, from
+    /// each pixel's variance over the passes (`stats::reference_noise`).
+    /// Absent in references made before it was recorded (`prism converge`
+    /// then estimates it from the block errors).
+    #[serde(default)]
+    pub noise_floor: Option<f64>,
 }
 
 impl ReferenceMeta {
@@ -102,7 +108,7 @@ pub fn make_reference(
     let dropped_samples = films.iter().map(|f| f.dropped).sum();
     let images: Vec<_> = films.iter().map(Film::image).collect();
     let stats = ColourStats::from_passes(&images, w, h, block);
-    let (mean, _) = pixel_mean_variance(&images);
+    let (mean, variance) = pixel_mean_variance(&images);
     let meta = ReferenceMeta {
         scene: scene_name.to_string(),
         integrator: integrator_name.to_string(),
@@ -121,6 +127,7 @@ pub fn make_reference(
         block_mean: stats.rgb.mean,
         block_stderr: stats.rgb.stderr,
         block_y_stderr: stats.y.stderr.iter().map(|s| s[0]).collect(),
+        noise_floor: Some(reference_noise(&mean, &variance, passes as usize)),
     };
     (mean, meta)
 }

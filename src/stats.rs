@@ -324,6 +324,26 @@ pub fn rel_mse(image: &[[f32; 3]], reference: &[[f32; 3]]) -> f64 {
     sum / (image.len() * 3) as f64
 }
 
+/// The relMSE (`rel_mse`) that a reference's own noise adds to every
+/// measurement against it: for a reference that is the mean of `k` passes,
+/// with per-pixel `mean` and sample `variance` of one pass
+/// (`pixel_mean_variance`), each pixel's variance of the mean, variance / k,
+/// over (mean^2 + 0.01), averaged over pixels and channels as `rel_mse`
+/// averages. To first order E[rel_mse(x, reference)] = rel_mse(x, truth) +
+/// this, pixel by pixel, whatever the image's contrast; it reads low once a
+/// pixel's relative standard error nears 1, where relMSE's division by the
+/// noisy reference's own square dominates (`converge::with_noise_floor`).
+pub fn reference_noise(mean: &[[f32; 3]], variance: &[[f32; 3]], k: usize) -> f64 {
+    assert_eq!(mean.len(), variance.len());
+    let sum: f64 = mean
+        .iter()
+        .zip(variance)
+        .flat_map(|(m, v)| (0..3).map(move |c| (m[c] as f64, v[c] as f64)))
+        .map(|(m, v)| v / k as f64 / (m * m + 0.01))
+        .sum();
+    sum / (mean.len() * 3).max(1) as f64
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -185,7 +185,7 @@ fn origin_notes(
 
 /// What the run's results say of the reference.
 fn reference_info(path: &Path, here: bool, origin: Option<&Origin>) -> ReferenceInfo {
-    let noise_floor = origin.and_then(|m| m.noise_floor);
+    let (noise_floor, method) = origin.and_then(|m| m.noise_floor).unzip();
     ReferenceInfo {
         path: path.display().to_string(),
         rendered_here: here,
@@ -197,7 +197,7 @@ fn reference_info(path: &Path, here: bool, origin: Option<&Origin>) -> Reference
         max_depth: origin.and_then(|m| m.max_depth),
         wall_seconds: origin.and_then(|m| m.wall_seconds),
         noise_floor,
-        noise_floor_method: noise_floor.map(|_| "block errors".to_string()),
+        noise_floor_method: method.map(str::to_string),
     }
 }
 
@@ -222,7 +222,8 @@ struct Origin {
     /// start later): a run of n samples shares one iff this is below n.
     first_sample: u32,
     wall_seconds: Option<f64>,
-    noise_floor: Option<f64>,
+    /// The relMSE its own noise adds, and how that was estimated.
+    noise_floor: Option<(f64, &'static str)>,
     /// Samples its films kept out (none recorded: none).
     dropped: DroppedSamples,
 }
@@ -261,7 +262,10 @@ impl Origin {
             max_depth: m.max_depth,
             first_sample: 0,
             wall_seconds: Some(m.wall_seconds),
-            noise_floor: Some(noise_floor(m)),
+            noise_floor: Some(match m.noise_floor {
+                Some(floor) => (floor, "pixel variances"),
+                None => (block_noise_floor(m.block, &m.block_mean, &m.block_stderr), "block errors"),
+            }),
             dropped: m.dropped_samples,
         }
     }
@@ -302,20 +306,60 @@ fn read_any_reference(exr: &Path) -> Result<(Vec<[f32; 3]>, Origin)> {
     Ok((image, origin))
 }
 
-/// The relMSE the reference's own noise adds to every measurement: the
-/// per-pixel variance of its mean is about block^2 x (block standard error)^2
-/// when neighbouring pixels are independent, divided by ref^2 + 0.01 as relMSE is.
-fn noise_floor(m: &ReferenceMeta) -> f64 {
-    let b2 = (m.block * m.block) as f64;
-    let terms = m
-        .block_mean
+/// The relMSE a reference's own noise adds to every measurement, for a
+/// sidecar made before it recorded the exact value (`stats::
+/// reference_noise`): the per-pixel variance of its mean is about block^2 x
+/// (block standard error)^2 when neighbouring pixels are independent,
+/// divided by (block mean)^2 + 0.01. It weighs every pixel of a block by
+/// the block's mean, so a block mixing bright pixels with noisy dark ones
+/// reads low (`the_pixel_variances_predict_the_reference_noise`).
+fn block_noise_floor(block: u32, block_mean: &[[f64; 3]], block_stderr: &[[f64; 3]]) -> f64 {
+    let b2 = (block * block) as f64;
+    let terms = block_mean
         .iter()
-        .zip(&m.block_stderr)
+        .zip(block_stderr)
         .flat_map(|(mean, se)| (0..3).map(move |c| b2 * se[c] * se[c] / (mean[c] * mean[c] + 0.01)));
     let (sum, n) = terms.fold((0.0, 0usize), |(s, n), t| (s + t, n + 1));
     if n == 0 {
         0.0
     } else {
         sum / n as f64
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampling::Sampler;
+    use crate::stats::{pixel_mean_variance, reference_noise, rel_mse, BlockStats, Image};
+
+    /// A reference of K = 8 passes of a checkerboard of bright pixels (10,
+    /// standard deviation 1 per pass) and dark ones (0.3, deviation 0.1: a
+    /// dimly lit, noisy wall beside a lamp), with Gaussian noise. Its noise
+    /// floor is what it adds to the relMSE of an exact image measured
+    /// against it, rel_mse(truth, reference). The estimate from each
+    /// pixel's variance finds it (within the 6 % by which relMSE's
+    /// denominator, the reference's own square, bends it at a dark pixel's
+    /// 12 % relative error; 1.8 % noise); the estimate from block errors
+    /// weighs the dark pixels by their block's mean and reads it 3x low.
+    #[test]
+    fn the_pixel_variances_predict_the_reference_noise() {
+        let (w, h, k, block) = (64u32, 64u32, 8usize, 8u32);
+        let truth: Image = (0..w * h).map(|i| [if (i % w + i / w) % 2 == 0 { 10.0 } else { 0.3 }; 3]).collect();
+        let mut rng = Sampler::new(7, 0, 0);
+        let mut gauss = || {
+            let (u1, u2) = (1.0 - rng.get1d(), rng.get1d());
+            (-2.0 * u1.ln()).sqrt() * (std::f32::consts::TAU * u2).cos()
+        };
+        let passes: Vec<Image> = (0..k)
+            .map(|_| truth.iter().map(|t| t.map(|t| t + if t > 1.0 { 1.0 } else { 0.1 } * gauss())).collect())
+            .collect();
+        let (mean, variance) = pixel_mean_variance(&passes);
+        let measured = rel_mse(&truth, &mean);
+        let pixels = reference_noise(&mean, &variance, k);
+        let b = BlockStats::from_passes(&passes, w, h, block);
+        let blocks = block_noise_floor(block, &b.mean, &b.stderr);
+        assert!((0.85..1.15).contains(&(pixels / measured)), "pixel variances {pixels:.3e}, measured {measured:.3e}");
+        assert!(blocks < 0.5 * measured, "block errors {blocks:.3e} found the floor {measured:.3e}");
     }
 }
