@@ -34,7 +34,8 @@ enum Command {
     /// List the registered integrators.
     Integrators,
     /// Render a stored reference: K independent passes, their mean (EXR) and
-    /// per-block means and standard errors (JSON sidecar) for z-tests.
+    /// per-block means and standard errors (JSON sidecar) for z-tests, with
+    /// the relMSE its own noise adds to a measurement against it.
     Reference(ReferenceArgs),
     /// Add parts of one render (`render --sample-range`) into one image:
     /// OUT.exr, its sidecar OUT.json and state OUT.state, bit-identical to a

@@ -1,7 +1,8 @@
 //! Stored references (VALIDATION.md §3): K independent passes of a scene
 //! rendered by one integrator, kept as the mean image (EXR) plus a JSON
 //! sidecar with the per-block means and standard errors the z-tests need,
-//! and where the numbers came from (integrator, spp, passes, seed, commit,
+//! the relMSE its own noise adds to a measurement against it (`prism
+//! converge` reads it), and where the numbers came from (integrator, spp, passes, seed, commit,
 //! wall time). Made by `prism reference`; read by tests/agreement.rs.
 
 use crate::film::{read_exr, DroppedSamples, Film, Outputs};
@@ -127,7 +128,9 @@ pub fn make_reference(
         block_mean: stats.rgb.mean,
         block_stderr: stats.rgb.stderr,
         block_y_stderr: stats.y.stderr.iter().map(|s| s[0]).collect(),
-        noise_floor: Some(reference_noise(&mean, &variance, passes as usize)),
+        // (A floor that overflowed would be written as null, and read back
+        // as absent: none in memory either.)
+        noise_floor: Some(reference_noise(&mean, &variance, passes as usize)).filter(|f| f.is_finite()),
     };
     (mean, meta)
 }

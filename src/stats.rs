@@ -330,9 +330,11 @@ pub fn rel_mse(image: &[[f32; 3]], reference: &[[f32; 3]]) -> f64 {
 /// (`pixel_mean_variance`), each pixel's variance of the mean, variance / k,
 /// over (mean^2 + 0.01), averaged over pixels and channels as `rel_mse`
 /// averages. To first order E[rel_mse(x, reference)] = rel_mse(x, truth) +
-/// this, pixel by pixel, whatever the image's contrast; it reads low once a
-/// pixel's relative standard error nears 1, where relMSE's division by the
-/// noisy reference's own square dominates (`converge::with_noise_floor`).
+/// this, pixel by pixel, whatever the image's contrast, for an exact x; a
+/// noisy x's own error is inflated too, by the reference's square in the
+/// denominator, by a term that falls as the square of the reference's
+/// relative error. It reads low once a pixel's relative standard error
+/// nears 1, where that division dominates (`converge::with_noise_floor`).
 pub fn reference_noise(mean: &[[f32; 3]], variance: &[[f32; 3]], k: usize) -> f64 {
     assert_eq!(mean.len(), variance.len());
     let sum: f64 = mean

@@ -62,7 +62,7 @@
 //! | --reference              | -              | reference EXR (+ optional sidecar)                  |
 //! | --reference-spp          | -              | render the reference here: total spp                |
 //! | --reference-integrator   | bdpt           | its integrator (power heuristic)                    |
-//! | --reference-passes       | 8              | independent passes it is made of (block errors)     |
+//! | --reference-passes       | 8              | independent passes (block errors, noise floor)      |
 //! | --reference-out          | DIR/reference.exr | where the rendered reference and sidecar go      |
 //! | --time                   | -              | time budget per integrator, seconds (of `--clock`)  |
 //! | --clock                  | wall           | `wall` or `cpu` (CPU seconds of all render threads) |
@@ -125,7 +125,8 @@ pub struct ConvergeArgs {
     #[arg(long, default_value = "bdpt")]
     pub reference_integrator: String,
     /// Independent passes of a reference rendered here (its sidecar keeps
-    /// per-block standard errors).
+    /// per-block standard errors, and its noise floor from each pixel's
+    /// variance).
     #[arg(long, default_value_t = 8)]
     pub reference_passes: u32,
     /// Where a reference rendered here is written (default DIR/reference.exr).
