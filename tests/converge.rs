@@ -370,7 +370,8 @@ fn more_bad_arguments_fail_before_rendering() {
 /// docs/cluster.md makes long references with `prism render` (and parts
 /// merged by `prism merge`): their sidecars are not `prism reference`'s,
 /// and converge takes them, with their integrator, spp, MIS heuristic and
-/// max depth, and no noise estimate from block errors. One made of the
+/// max depth, and no noise estimate from block errors (one of `--passes`
+/// has its noise from its variance image). One made of the
 /// run's seed from sample 0 shares its sample streams and is refused (it
 /// was only noted, though every error measured was too low); a merge of
 /// later samples of that seed does not unless the run reaches them, and
@@ -405,6 +406,20 @@ fn a_rendered_reference_is_accepted() {
     assert_eq!((r.reference.integrator.as_deref(), r.reference.mis.as_deref()), (Some("bdpt"), Some("balance")));
     assert_eq!((r.reference.spp, r.reference.seed, r.reference.passes), (Some(4), Some(99), None));
     assert!(report.contains("bdpt, 4 spp (seed 99)"), "{report}");
+    assert_eq!(r.reference.noise_floor, None);
+
+    // With --passes, its variance image gives its noise, as a stored
+    // reference's pixel variances do; a variance image that is gone is an
+    // error that names it.
+    render(&["--integrator", "bdpt", "--spp", "2", "--passes", "2", "--seed", "98", "--out", &path("passes.exr")]);
+    let (r, _) = measure("passes.exr");
+    assert_eq!(r.reference.noise_floor_method.as_deref(), Some("pixel variances"));
+    assert!(r.reference.noise_floor.is_some_and(|f| f > 0.0), "{:?}", r.reference.noise_floor);
+    std::fs::remove_file(d.join("passes.var.exr")).unwrap();
+    let mut cfg = config("white-room.json", "path", ReferenceSource::File(d.join("passes.exr")), &d.join("o"), 8);
+    cfg.max_spp = Some(2);
+    let e = format!("{:#}", run(&cfg).expect_err("a reference without its variance image was taken"));
+    assert!(e.contains("passes.json") && e.contains("passes.var.exr"), "{e}");
 
     render(&["--integrator", "path", "--spp", "4", "--seed", "11", "--out", &path("same.exr")]);
     refused("same.exr", 2);

@@ -453,7 +453,8 @@ pub struct ReferenceInfo {
     /// How `noise_floor` was estimated: `same estimator` (the reference's
     /// integrator is one of the run's lines: measured relMSE at n spp is
     /// V/n + V/N, solved for V/N), else `pixel variances` (recorded by
-    /// `prism reference` from its passes, `stats::reference_noise`), else
+    /// `prism reference` from its passes, or from the variance image of a
+    /// `prism render --passes` reference; `stats::reference_noise`), else
     /// `block errors` (an older sidecar's per-block standard errors: rough,
     /// as they weigh a block's pixels by its mean).
     pub noise_floor_method: Option<String>,

@@ -245,6 +245,10 @@ struct RenderSidecar {
     sample_ranges: Vec<[u32; 2]>,
     #[serde(default)]
     dropped_samples: DroppedSamples,
+    /// The per-pixel variance EXR of a `--passes` render, beside it
+    /// (docs/cluster.md).
+    #[serde(default)]
+    variance: Option<String>,
 }
 
 impl Origin {
@@ -285,6 +289,7 @@ impl Origin {
             // (A render's sidecar times only its last process, if it was
             // resumed, and a merge's none: the reference's cost is unknown.)
             wall_seconds: None,
+            // (From its variance image, if it has one: `read_any_reference`.)
             noise_floor: None,
             dropped: r.dropped_samples,
         }
@@ -295,14 +300,26 @@ impl Origin {
 fn read_any_reference(exr: &Path) -> Result<(Vec<[f32; 3]>, Origin)> {
     let json = exr.with_extension("json");
     let text = std::fs::read_to_string(&json).with_context(|| format!("cannot read {}", json.display()))?;
-    let origin = match serde_json::from_str::<ReferenceMeta>(&text) {
-        Ok(m) => Origin::of_reference(&m),
-        Err(_) => serde_json::from_str::<RenderSidecar>(&text).map(Origin::of_render).with_context(|| {
-            format!("{}: neither a reference sidecar nor a render or merge sidecar", json.display())
-        })?,
+    let (mut origin, variance) = match serde_json::from_str::<ReferenceMeta>(&text) {
+        Ok(m) => (Origin::of_reference(&m), None),
+        Err(_) => {
+            let r = serde_json::from_str::<RenderSidecar>(&text).with_context(|| {
+                format!("{}: neither a reference sidecar nor a render or merge sidecar", json.display())
+            })?;
+            let variance = r.variance.clone();
+            (Origin::of_render(r), variance)
+        }
     };
     let (w, h, image) = read_exr(exr)?;
     ensure!((w, h) == (origin.width, origin.height), "{}: size {w}x{h} differs from its sidecar", exr.display());
+    if let (Some(name), Some(k)) = (variance, origin.passes) {
+        let var = exr.with_file_name(&name);
+        let (vw, vh, variance) = read_exr(&var)
+            .with_context(|| format!("{}: its \"variance\" names {name}, which cannot be read", json.display()))?;
+        ensure!((vw, vh) == (w, h), "{}: size {vw}x{vh} differs from {}'s {w}x{h}", var.display(), exr.display());
+        let floor = stats::reference_noise(&image, &variance, k as usize);
+        origin.noise_floor = floor.is_finite().then_some((floor, "pixel variances"));
+    }
     Ok((image, origin))
 }
 
