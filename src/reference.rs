@@ -128,9 +128,7 @@ pub fn make_reference(
         block_mean: stats.rgb.mean,
         block_stderr: stats.rgb.stderr,
         block_y_stderr: stats.y.stderr.iter().map(|s| s[0]).collect(),
-        // (A floor that overflowed would be written as null, and read back
-        // as absent: none in memory either.)
-        noise_floor: Some(reference_noise(&mean, &variance, passes as usize)).filter(|f| f.is_finite()),
+        noise_floor: reference_noise(&mean, &variance, passes as usize),
     };
     (mean, meta)
 }

@@ -335,7 +335,8 @@ pub fn rel_mse(image: &[[f32; 3]], reference: &[[f32; 3]]) -> f64 {
 /// denominator, by a term that falls as the square of the reference's
 /// relative error. It reads low once a pixel's relative standard error
 /// nears 1, where that division dominates (`converge::with_noise_floor`).
-pub fn reference_noise(mean: &[[f32; 3]], variance: &[[f32; 3]], k: usize) -> f64 {
+/// None if it is not finite (a variance that overflowed f32).
+pub fn reference_noise(mean: &[[f32; 3]], variance: &[[f32; 3]], k: usize) -> Option<f64> {
     assert_eq!(mean.len(), variance.len());
     let sum: f64 = mean
         .iter()
@@ -343,7 +344,7 @@ pub fn reference_noise(mean: &[[f32; 3]], variance: &[[f32; 3]], k: usize) -> f6
         .flat_map(|(m, v)| (0..3).map(move |c| (m[c] as f64, v[c] as f64)))
         .map(|(m, v)| v / k as f64 / (m * m + 0.01))
         .sum();
-    sum / (mean.len() * 3).max(1) as f64
+    Some(sum / (mean.len() * 3).max(1) as f64).filter(|f| f.is_finite())
 }
 
 #[cfg(test)]

@@ -267,7 +267,7 @@ impl Origin {
             first_sample: 0,
             wall_seconds: Some(m.wall_seconds),
             noise_floor: Some(match m.noise_floor {
-                Some(floor) => (floor, "pixel variances"),
+                Some(floor) => (floor, PIXEL_VARIANCES),
                 None => (block_noise_floor(m.block, &m.block_mean, &m.block_stderr), "block errors"),
             }),
             dropped: m.dropped_samples,
@@ -296,6 +296,9 @@ impl Origin {
     }
 }
 
+/// How a floor from the reference's per-pixel variances is reported.
+const PIXEL_VARIANCES: &str = "pixel variances";
+
 /// A reference EXR and its sidecar, of either kind (`Origin`).
 fn read_any_reference(exr: &Path) -> Result<(Vec<[f32; 3]>, Origin)> {
     let json = exr.with_extension("json");
@@ -317,8 +320,7 @@ fn read_any_reference(exr: &Path) -> Result<(Vec<[f32; 3]>, Origin)> {
         let (vw, vh, variance) = read_exr(&var)
             .with_context(|| format!("{}: its \"variance\" names {name}, which cannot be read", json.display()))?;
         ensure!((vw, vh) == (w, h), "{}: size {vw}x{vh} differs from {}'s {w}x{h}", var.display(), exr.display());
-        let floor = stats::reference_noise(&image, &variance, k as usize);
-        origin.noise_floor = floor.is_finite().then_some((floor, "pixel variances"));
+        origin.noise_floor = stats::reference_noise(&image, &variance, k as usize).map(|f| (f, PIXEL_VARIANCES));
     }
     Ok((image, origin))
 }
@@ -379,7 +381,7 @@ mod tests {
         let passes: Vec<Image> = (0..k).map(|_| pass()).collect();
         let (mean, variance) = pixel_mean_variance(&passes);
         let measured = rel_mse(&truth, &mean);
-        let pixels = reference_noise(&mean, &variance, k);
+        let pixels = reference_noise(&mean, &variance, k).expect("a finite floor");
         let b = BlockStats::from_passes(&passes, w, h, block);
         let blocks = block_noise_floor(block, &b.mean, &b.stderr);
         assert!((0.85..1.15).contains(&(pixels / measured)), "pixel variances {pixels:.3e}, measured {measured:.3e}");
