@@ -26,7 +26,10 @@
 //!   (`path` / `ptracer`, max_depth = -1: unbounded with Russian roulette).
 //!   Mitsuba's roulette starts at depth `rr_depth` (prism: after 4
 //!   scattering events, so rr_depth = 4) and continues with probability
-//!   min(max throughput, 0.95); prism has no 0.95 cap.
+//!   min(max throughput, 0.95); prism has no 0.95 cap, which on the
+//!   benchmark's diffuse box never binds for `path` (every reflectance is
+//!   below 0.95, and so is the throughput at each roulette), but does for
+//!   `ptracer`, whose throughput starts far above 1 (docs/performance.md).
 //!
 //! Anything else (conductors, dielectrics, mirrors, point lights, the
 //! environment, two-sided emission) is refused with an error naming it:

@@ -42,7 +42,8 @@
 //! shading normal is not the BSDF itself (pbrt-v3 does this; pbrt-v4's BDPT
 //! omits it). With flat shading (ns = ng) the factor is 1.
 //!
-//! Russian roulette ends both walks: from the third bounce on, the relative
+//! Russian roulette ends both walks: from the fourth scattering event on
+//! (`russian_roulette`'s depth 3, counted from 0 at the first), the relative
 //! throughput (beta over its value on leaving the endpoint, so a light
 //! path's huge Le / pdf does not disable it) decides survival
 //! (`integrators::russian_roulette`). It is NOT folded into the MIS densities

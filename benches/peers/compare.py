@@ -1,17 +1,24 @@
 #!/usr/bin/env python3
 """Tabulate a benches/peers/run.sh run: throughput, ratios and error.
 
-Reads target/peers/runs/*.json (one per renderer, written by run.sh) and the
-reference EXR; for each image computes, against the reference:
+Reads target/peers/runs/*.json (one per renderer, its fastest round, written
+by run.sh), rounds/*.json (every round's run) and the reference EXR; for each
+renderer computes, against the reference, over the images of all its rounds
+(each round renders with seeds of its own):
   relMSE  mean over pixels and channels of (x - r)^2 / (r^2 + 0.01)
-          (prism's definition, src/stats.rs `rel_mse`)
-  mean    the image mean per channel divided by the reference's (R, G, B):
-          bias between renderers shows here, noise averages out
-and the equal-time figures: efficiency = 1 / (relMSE x seconds), and the
-relMSE each renderer would reach in prism path's time (relMSE scales as
-1/time for an unbiased estimator: relMSE x seconds / seconds_prism_path).
-Seconds are render wall seconds; the CPU columns use user+sys seconds of
-the render (fairer on a machine shared with other jobs).
+          (prism's definition, src/stats.rs `rel_mse`), averaged over the
+          rounds' images
+  mean    the image mean per channel divided by the reference's (R, G, B),
+          over the rounds' images: bias between renderers shows here, noise
+          averages out
+and the equal-time figures: efficiency = 1 / (relMSE' x seconds), and the
+relMSE' each renderer would reach in prism path's time (relMSE scales as
+1/time for an unbiased estimator: relMSE' x seconds / seconds_prism_path),
+where relMSE' is relMSE less the reference's own noise (`noise_floor` of
+its sidecar, written by `prism reference`): that noise adds the same
+amount to every image's relMSE and does not shrink with the image's time.
+Seconds are the fastest round's render wall seconds; the CPU columns use
+user+sys seconds of the render (fairer on a machine shared with other jobs).
 
 With ROUNDS > 1, rounds/*.json holds every round's run: the ratio of two
 renderers run seconds apart in one round is measured under one load, so the
@@ -32,6 +39,9 @@ import mitsuba as mi
 import numpy as np
 
 mi.set_variant("scalar_rgb")
+
+# What results.json keeps of the reference's sidecar.
+REFERENCE_KEYS = ("command", "commit", "build_target", "spp", "passes", "seed", "noise_floor")
 
 
 def load(path):
@@ -72,8 +82,37 @@ def paired_summary(paired):
             f"{min(paired):.2f}-{max(paired):.2f}, {len(paired)})")
 
 
+def rounds(out, key):
+    """Every round's run of one renderer, in round order."""
+    files = (out / "rounds").glob(f"{key}-r*.json")
+    return [json.loads(f.read_text()) for f in sorted(files, key=lambda f: int(f.stem.rsplit("-r", 1)[1]))]
+
+
 def round_rates(out, key):
-    return [rate(json.loads(f.read_text())) for f in (out / "rounds").glob(f"{key}-r*.json")]
+    return [rate(r) for r in rounds(out, key)]
+
+
+def image_errors(paths, ref):
+    """(relMSE, mean per channel over the reference's) of each image."""
+    ref_mean = ref.reshape(-1, 3).mean(0)
+    errors = []
+    for path in paths:
+        img = load(path)
+        if img.shape != ref.shape:
+            sys.exit(f"error: {path} is {img.shape}, the reference {ref.shape}")
+        errors.append((rel_mse(img, ref), img.reshape(-1, 3).mean(0) / ref_mean))
+    return errors
+
+
+def reference_sidecar(ref_path):
+    """The reference's sidecar; exits if it lacks the noise estimate that
+    `prism reference` has written since session 38."""
+    path = ref_path.with_suffix(".json")
+    sidecar = json.loads(path.read_text())
+    if sidecar.get("noise_floor") is None:
+        sys.exit(f"error: {path} has no noise_floor (a reference older than session 38): "
+                 f"delete {ref_path} and run run.sh again to render it anew")
+    return sidecar
 
 
 def same_rays(fp, p, fm, m):
@@ -132,21 +171,27 @@ def main():
     out = Path(sys.argv[1] if len(sys.argv) > 1 else "target/peers")
     ref_path = out / "reference.exr"
     ref = load(ref_path)
-    ref_mean = ref.reshape(-1, 3).mean(0)
+    reference = reference_sidecar(ref_path)
+    noise = reference["noise_floor"]
     rows = []
     for f in sorted((out / "runs").glob("*.json")):
         run = json.loads(f.read_text())
-        img = load(run["out"])
-        if img.shape != ref.shape:
-            sys.exit(f"error: {run['out']} is {img.shape}, the reference {ref.shape}")
-        run["rel_mse"] = rel_mse(img, ref)
-        run["mean_ratio"] = (img.reshape(-1, 3).mean(0) / ref_mean).tolist()
-        run["efficiency"] = 1.0 / (run["rel_mse"] * run["wall_seconds"])
+        images = [r["out"] for r in rounds(out, run["key"])] or [run["out"]]
+        errors = image_errors(images, ref)
+        run["rel_mse_images"] = len(images)
+        run["rel_mse"] = float(np.mean([e[0] for e in errors]))
+        run["mean_ratio"] = np.mean([e[1] for e in errors], axis=0).tolist()
+        net = run["rel_mse"] - noise
+        if net <= 0:
+            print(f"warning: {run['label']}: relMSE {run['rel_mse']:.3e} is within the reference's own noise "
+                  f"{noise:.3e}; its equal-time figures are left out", file=sys.stderr)
+        run["rel_mse_net"] = net if net > 0 else float("nan")
+        run["efficiency"] = 1.0 / (run["rel_mse_net"] * run["wall_seconds"])
         rows.append(run)
     by_key = {r["key"]: r for r in rows}
     base = by_key.get("prism-path")
     for r in rows:
-        r["rel_mse_at_prism_path_time"] = r["rel_mse"] * r["wall_seconds"] / base["wall_seconds"] if base else None
+        r["rel_mse_at_prism_path_time"] = r["rel_mse_net"] * r["wall_seconds"] / base["wall_seconds"] if base else None
 
     machine_path = out / "machine.json"
     machine = json.loads(machine_path.read_text()) if machine_path.exists() else None
@@ -157,8 +202,9 @@ def main():
         print(f"machine: {machine['cpu']} (family {machine['cpu_family']}, model {machine['cpu_model']}), "
               f"{machine['cpus']} CPUs; ISA {' '.join(machine['isa'])}; Dr.Jit LLVM kernels for "
               f"{machine['drjit_target_cpu']}, {machine['drjit_float_lanes']} float lanes; prism built for {prism_target}\n")
-    print(f"reference: {ref_path} ({json.loads(ref_path.with_suffix('.json').read_text())['command']})\n")
-    print("| renderer | samples | render s | CPU s | Msamples/s | Msamples/CPU-s | relMSE | relMSE at prism-path time | efficiency 1/(relMSE s) | mean R,G,B / reference |")
+    print(f"reference: {ref_path} ({reference['command']}; commit {reference.get('commit')}); its own noise "
+          f"adds {noise:.3e} to every relMSE, taken out of the equal-time columns (relMSE')\n")
+    print("| renderer | samples | render s | CPU s | Msamples/s | Msamples/CPU-s | relMSE (images) | relMSE' at prism-path time | efficiency 1/(relMSE' s) | mean R,G,B / reference |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---|")
     for r in rows:
         at_path_time = f"{r['rel_mse_at_prism_path_time']:.3e}" if base else "-"
@@ -168,7 +214,7 @@ def main():
         print(
             f"| {r['label']} | {r['samples'] / 1e6:.2f} M | {r['wall_seconds']:.2f}{extra} | {r['cpu_seconds']:.2f} "
             f"| {r['samples'] / r['wall_seconds'] / 1e6:.3f} | {per_cpu_second(r) / 1e6:.3f} "
-            f"| {r['rel_mse']:.3e} | {at_path_time} | {r['efficiency']:.2f} "
+            f"| {r['rel_mse']:.3e} ({r['rel_mse_images']}) | {at_path_time} | {r['efficiency']:.2f} "
             f"| {', '.join(f'{m:.4f}' for m in r['mean_ratio'])} |"
         )
     pairs = [
@@ -197,12 +243,14 @@ def main():
     for key in ["prism-bdpt", "prism-pgo-bdpt"]:
         if key in by_key:
             r = by_key[key]
-            rounds = sorted(round_rates(out, key))
-            spread = f"; rounds {rounds[0] / 1e6:.3f}-{rounds[-1] / 1e6:.3f}" if len(rounds) > 1 else ""
+            rates = sorted(round_rates(out, key))
+            spread = f"; rounds {rates[0] / 1e6:.3f}-{rates[-1] / 1e6:.3f}" if len(rates) > 1 else ""
             print(f"\n{r['label']}: {rate(r) / 1e6:.3f} Msamples/s, best round (target >= 1){spread}")
     rays = rays_alone(out)
     (out / "results.json").write_text(
-        json.dumps({"machine": machine, "runs": rows, "ratios": ratios, "rays_alone": rays}, indent=2) + "\n")
+        json.dumps({"machine": machine, "reference": {k: reference.get(k) for k in REFERENCE_KEYS},
+                    "runs": rows, "round_rates": {r["key"]: round_rates(out, r["key"]) for r in rows},
+                    "ratios": ratios, "rays_alone": rays}, indent=2) + "\n")
 
 
 if __name__ == "__main__":

@@ -11,7 +11,9 @@ With --avx2, the LLVM kernels are compiled for x86-64-v3 with 8 float
 lanes whatever the host has (Dr.Jit's `jit_llvm_set_target`), so that on
 an AVX-512 host Mitsuba runs at an AVX2 host's width (docs/performance.md).
 
-The scene is rendered --repeat times (seeds 0, 1, ...). The first call in a
+The scene is rendered --repeat times (seeds --seed, --seed + 1, ...; run.sh
+gives each round seeds of its own, so that the rounds' images are
+independent and their relMSE can be averaged). The first call in a
 process includes Dr.Jit's kernel compilation (or loading it from the kernel
 cache in ~/.drjit) for the LLVM variants; later calls reuse the kernel.
 With the LLVM variants, Dr.Jit's kernel history separates compile time
@@ -66,6 +68,7 @@ def main():
     ap.add_argument("--height", type=int, default=256)
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--repeat", type=int, default=2, help="renders in this process (the first includes the JIT)")
+    ap.add_argument("--seed", type=int, default=0, help="seed of the first render; the others follow it")
     ap.add_argument("--out", required=True, help="EXR of the last render (linear sRGB)")
     ap.add_argument("--avx2", action="store_true", help="LLVM kernels for x86-64-v3, 8 float lanes (see above)")
     a = ap.parse_args()
@@ -94,7 +97,7 @@ def main():
 
     runs = []
     image = None
-    for seed in range(a.repeat):
+    for seed in range(a.seed, a.seed + a.repeat):
         if llvm:
             dr.kernel_history()  # clear
         c0, t0 = cpu_seconds(), time.perf_counter()

@@ -217,7 +217,7 @@ mitsuba_run() { # KEY VARIANT INTEGRATOR ROUND [--avx2]
     [[ -n ${5:-} ]] && cache=("DRJIT_CACHE_DIR=$OUT/drjit-cache-avx2")
     raw=$(env "${cache[@]}" "$PY" benches/peers/mitsuba_render.py "$OUT/mitsuba-scene/scene.xml" \
         --variant "$2" --integrator "$3" --spp "$SPP" --width "$RES" --height "$RES" --threads "$THREADS" \
-        --repeat "$repeat" --out "$exr" ${5:-})
+        --repeat "$repeat" --seed $(( ($4 - 1) * repeat )) --out "$exr" ${5:-})
     local json
     json=$("$PY" - "$raw" "$1" <<'PYEOF'
 import json, sys
