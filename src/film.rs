@@ -176,18 +176,59 @@ impl Film {
     }
 }
 
-/// Fails early (before any rendering) if `path` cannot be written.
+/// Fails early (before any rendering) if `path` cannot be written: its
+/// directory must exist and take the very temporary file `Outputs` will
+/// write (whose name is longer than `path`'s: a name near the file
+/// system's limit fails here, not after the render).
 pub fn check_writable(path: &Path) -> Result<()> {
-    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let dir = parent_dir(path);
     if !dir.is_dir() {
         bail!("cannot write {}: directory {} does not exist", path.display(), dir.display());
     }
-    let probe = dir.join(format!(".prism-write-probe-{}", std::process::id()));
+    let probe = temporary_path(path)?;
+    let probe_name = probe.file_name().unwrap_or_default().len();
+    if probe_name > NAME_MAX {
+        bail!(
+            "cannot write {}: its name is too long (the temporary file written beside it first would have a name \
+             of {probe_name} bytes, over the {NAME_MAX} that file systems allow)",
+            path.display()
+        );
+    }
     std::fs::write(&probe, b"")
         .with_context(|| format!("cannot write {}: directory is not writable", path.display()))?;
     let _ = std::fs::remove_file(probe);
     if path.is_dir() {
         bail!("cannot write {}: it is a directory", path.display());
+    }
+    Ok(())
+}
+
+/// The longest file name (bytes) of Linux's file systems, and most others.
+const NAME_MAX: usize = 255;
+
+/// Where `Outputs` writes `path`'s new contents before moving them into
+/// place: a hidden file beside it, named after it and this process.
+fn temporary_path(path: &Path) -> Result<PathBuf> {
+    let name = path.file_name().context("output path has no file name")?.to_string_lossy();
+    let ext = path.extension().map(|e| e.to_string_lossy().to_string()).unwrap_or_default();
+    Ok(parent_dir(path).join(format!(".{name}.{}.tmp.{ext}", std::process::id())))
+}
+
+/// Refuses to write a sidecar over an existing JSON file that is not a
+/// sidecar (one with `scene`, `integrator` and `spp`): `prism render a.json
+/// --out b.exr`, or `prism merge b.exr ...`, would replace a scene `b.json`.
+pub fn check_sidecar_target(path: &Path) -> Result<()> {
+    let Ok(text) = std::fs::read_to_string(path) else {
+        return Ok(()); // none (or unreadable, which `check_writable` reports)
+    };
+    let json: Option<serde_json::Value> = serde_json::from_str(&text).ok();
+    let is_sidecar = json.is_some_and(|v| ["scene", "integrator", "spp"].iter().all(|k| v.get(k).is_some()));
+    if !is_sidecar {
+        bail!(
+            "the sidecar {} would replace a JSON file that is not a prism sidecar (a scene?): choose another \
+             output name",
+            path.display()
+        );
     }
     Ok(())
 }
@@ -272,10 +313,7 @@ pub struct Outputs {
 impl Outputs {
     /// Writes `path`'s new contents through `write` to its temporary file.
     pub fn stage(&mut self, path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
-        let dir = parent_dir(path);
-        let name = path.file_name().context("output path has no file name")?.to_string_lossy();
-        let ext = path.extension().map(|e| e.to_string_lossy().to_string()).unwrap_or_default();
-        let tmp = dir.join(format!(".{name}.{}.tmp.{ext}", std::process::id()));
+        let tmp = temporary_path(path)?;
         if self.staged.iter().any(|(_, target)| target == path) {
             bail!("{} would be written twice, as two of this run's outputs", path.display());
         }

@@ -4,7 +4,8 @@ use anyhow::{anyhow, bail, ensure, Context, Result};
 use clap::{Parser, Subcommand};
 use prism::camera::Camera;
 use prism::film::{
-    self, check_no_stale_state, check_outputs, check_writable, ensure_exr, resolve_path, DroppedSamples, Film, Outputs,
+    self, check_no_stale_state, check_outputs, check_sidecar_target, check_writable, ensure_exr, resolve_path,
+    DroppedSamples, Film, Outputs,
 };
 use prism::integrators::{self, Integrator, IntegratorOptions, MisHeuristic, INTEGRATORS};
 use prism::render::{
@@ -464,12 +465,17 @@ fn writes_state(a: &RenderArgs) -> bool {
 }
 
 /// Before anything is rendered: every output writable (its directory
-/// exists, it is not a directory) and none replacing an input or another.
+/// exists, it is not a directory), none replacing an input or another, and
+/// the JSON ones (the sidecars) replacing no JSON file but a sidecar.
 fn check_new_outputs(inputs: &[(&str, &Path)], outputs: &[(&str, &Path)]) -> Result<()> {
     for (_, path) in outputs {
         check_writable(path)?;
     }
-    check_outputs(inputs, outputs)
+    check_outputs(inputs, outputs)?;
+    for (_, path) in outputs.iter().filter(|(_, p)| p.extension().is_some_and(|e| e == "json")) {
+        check_sidecar_target(path)?;
+    }
+    Ok(())
 }
 
 fn render_command(a: RenderArgs) -> Result<()> {
@@ -613,6 +619,10 @@ fn render_strategies(s: &Setup, dir: &Path, out: &mut Outputs) -> Result<(Vec<[f
 
 fn merge_command(out: &Path, parts: &[PathBuf]) -> Result<()> {
     ensure_exr("the merge output", out)?;
+    for part in parts {
+        // Its .state is read: a checkpoint's name would read a stale one.
+        ensure_exr("a part", part)?;
+    }
     let inputs: Vec<PathBuf> = parts.iter().map(|p| p.with_extension("state")).collect();
     let (state, sidecar) = (out.with_extension("state"), out.with_extension("json"));
     check_new_outputs(

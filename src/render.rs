@@ -259,9 +259,16 @@ pub fn render_with_strategies(
 /// library panics when it cannot start the pool; the commands check first).
 pub const MAX_THREADS: usize = 1024;
 
-/// A command-line thread count: 0 (all cores) to `MAX_THREADS`.
+/// A command-line thread count: 0 (all cores) to `MAX_THREADS`, and as
+/// many threads as the process may start (a memory or process limit can
+/// refuse them): a pool is started once here, so that a limit is an error
+/// before the render rather than a panic in it.
 pub fn check_threads(threads: usize) -> anyhow::Result<()> {
     anyhow::ensure!(threads <= MAX_THREADS, "--threads {threads}: at most {MAX_THREADS} (0 = all cores)");
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| anyhow::anyhow!("--threads {threads}: cannot start the worker threads: {e}"))?;
     Ok(())
 }
 

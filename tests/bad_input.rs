@@ -520,6 +520,16 @@ const CASES: &[Case] = &[
         words: &["cannot write /proc/prism-bad-input.exr: directory is not writable"],
     },
     Case {
+        // The temporary file written first is named `.NAME.PID.tmp.exr`:
+        // past 255 bytes it failed only once the render was done.
+        id: "output-name-too-long",
+        edits: &[],
+        args: &[],
+        out: LONG_NAME,
+        position: "",
+        words: &["its name is too long (the temporary file written beside it first would have a name of"],
+    },
+    Case {
         id: "output-is-a-directory",
         edits: &[],
         args: &[],
@@ -669,10 +679,20 @@ const CASES: &[Case] = &[
     },
 ];
 
+/// An output name of 244 bytes: under the file system's 255, not with the
+/// temporary file's `.` and `.PID.tmp.exr`.
+const LONG_NAME: &str = concat!(
+    "aaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaa",
+    "aaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaa.exr"
+);
+
 /// As the `to` of an edit: cut the text where `from` starts.
 const TRUNCATE: &str = "\0truncate";
 
 const PREVIOUS: &[u8] = b"previous contents";
+
+/// An earlier render's sidecar, which a render may replace (not any JSON).
+const PREVIOUS_SIDECAR: &[u8] = br#"{"scene": "s.json", "integrator": "path", "spp": 1}"#;
 
 const MIXED_OBJ: &str = "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nvn 0 1 0\nf 1//1 2//1 3//1\nf 1 3 4\n";
 
@@ -701,7 +721,7 @@ fn run(case: &Case) -> Result<(), String> {
     let keep = out.parent().is_some_and(|p| p == dir) && !case.out.starts_with("taken");
     if keep {
         std::fs::write(&out, PREVIOUS).unwrap();
-        std::fs::write(&sidecar, PREVIOUS).unwrap();
+        std::fs::write(&sidecar, PREVIOUS_SIDECAR).unwrap();
     }
     let o = Command::new(env!("CARGO_BIN_EXE_prism"))
         .arg("render")
@@ -732,7 +752,7 @@ fn run(case: &Case) -> Result<(), String> {
     }
     if keep {
         if std::fs::read(&out).ok().as_deref() != Some(PREVIOUS)
-            || std::fs::read(&sidecar).ok().as_deref() != Some(PREVIOUS)
+            || std::fs::read(&sidecar).ok().as_deref() != Some(PREVIOUS_SIDECAR)
         {
             problems.push("the existing output or sidecar changed".to_string());
         }

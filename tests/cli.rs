@@ -264,6 +264,44 @@ fn outputs_never_replace_the_scene_or_each_other() {
     let state = std::fs::read(d.join("p1.state")).unwrap();
     fails_with(prism(&["merge", &path("p1.exr"), &path("p1.exr")]), "would replace the part state");
     assert_eq!(std::fs::read(d.join("p1.state")).unwrap(), state, "the part's state changed");
+    // Its .state would be read: a checkpoint's name is refused.
+    fails_with(prism(&["merge", &path("m.exr"), &path("p1.ckpt")]), "a part must name an .exr file");
+
+    // A sidecar replaces an earlier sidecar, never another JSON file: here a
+    // second scene, which no input names (found by a review, session 39:
+    // `prism merge other.exr ...` wrote over other.json).
+    let other = write(&d, "other.json", scenes::TINY_SCENE);
+    let foreign = "would replace a JSON file that is not a prism sidecar";
+    fails_with(render(&["--out", &path("other.exr")]), foreign);
+    fails_with(prism(&["merge", &path("other.exr"), &path("p1.exr")]), foreign);
+    let reference = ["reference", &scene, "--spp", "1", "--passes", "2", "--width", "8", "--height", "8", "--out"];
+    fails_with(prism(&[&reference[..], &[&path("other.exr")]].concat()), foreign);
+    assert_eq!(std::fs::read_to_string(&other).unwrap(), scenes::TINY_SCENE, "the second scene changed");
+    assert!(!d.join("other.exr").exists(), "an output was written");
+    for _ in 0..2 {
+        let o = render(&["--out", &path("again.exr")]);
+        assert!(o.status.success(), "a render over its own earlier sidecar: {}", stderr(&o));
+    }
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+/// A thread count the process may not start (here, 1024 stacks over a
+/// 1.5 GB address-space limit) is an error before the render, not a
+/// panic inside it (exit 101; found by a review, session 39).
+#[test]
+fn threads_the_process_cannot_start_are_an_error() {
+    let d = temp_dir("threads");
+    let scene = write(&d, "s.json", scenes::TINY_SCENE);
+    let out = d.join("t.exr").display().to_string();
+    let command = format!(
+        "ulimit -v 1500000 && exec '{}' render '{scene}' --spp 1 --threads 1024 --quiet --out '{out}'",
+        env!("CARGO_BIN_EXE_prism")
+    );
+    let o = Command::new("sh").args(["-c", &command]).output().unwrap();
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(e.contains("--threads 1024: cannot start the worker threads"), "{e}");
+    assert!(!d.join("t.exr").exists(), "an output was written");
     let _ = std::fs::remove_dir_all(&d);
 }
 

@@ -254,7 +254,10 @@ fn bad_arguments_fail_clearly() {
     std::fs::copy(scene_path("white-room.json"), &scene).unwrap();
     let scene = scene.to_str().unwrap();
     let reference_in_out = out.join("path.exr");
-    let cases: [(&[&str], &str); 4] = [
+    let other_scene = d.join("other.json");
+    std::fs::copy(scene_path("white-room.json"), &other_scene).unwrap();
+    let over_other_scene = d.join("other.exr").display().to_string();
+    let cases: [(&[&str], &str); 5] = [
         (
             &["converge", scene, "--spp", "2", "--reference-spp", "2", "--reference-integrator", "magic", "--out", o],
             "unknown integrator \"magic\"",
@@ -293,6 +296,21 @@ fn bad_arguments_fail_clearly() {
             ],
             "are the same file",
         ),
+        (
+            &[
+                "converge",
+                scene,
+                "--spp",
+                "2",
+                "--reference-spp",
+                "2",
+                "--reference-out",
+                &over_other_scene,
+                "--out",
+                o,
+            ],
+            "would replace a JSON file that is not a prism sidecar",
+        ),
     ];
     for (args, message) in cases {
         let r = prism(args);
@@ -301,6 +319,7 @@ fn bad_arguments_fail_clearly() {
         assert!(!out.exists(), "{args:?}: left {} behind", out.display());
     }
     assert_eq!(std::fs::read(scene).unwrap(), std::fs::read(scene_path("white-room.json")).unwrap());
+    assert_eq!(std::fs::read(&other_scene).unwrap(), std::fs::read(scene_path("white-room.json")).unwrap());
     std::fs::remove_dir_all(&d).unwrap();
 }
 

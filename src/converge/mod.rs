@@ -722,7 +722,11 @@ fn check_converge_outputs(cfg: &ConvergeConfig) -> Result<()> {
     }
     let inputs: Vec<(&str, &Path)> = inputs.iter().map(|(r, p)| (*r, p.as_path())).collect();
     let outputs: Vec<(&str, &Path)> = outputs.iter().map(|(r, p)| (*r, p.as_path())).collect();
-    check_outputs(&inputs, &outputs)
+    check_outputs(&inputs, &outputs)?;
+    if let ReferenceSource::Render { out, .. } = &cfg.reference {
+        crate::film::check_sidecar_target(&out.with_extension("json"))?;
+    }
+    Ok(())
 }
 
 fn spinner(visible: bool, message: String) -> ProgressBar {
