@@ -12,7 +12,7 @@ use prism::render::{
     check_threads, is_strategy_image, render_chunked, render_with_strategies, RenderOptions, RenderStats,
     StrategyImages,
 };
-use prism::render_state::{fnv1a, Identity, RenderState};
+use prism::render_state::{combined_build, fnv1a, Identity, RenderState};
 use prism::scene::{load_scene, Scene};
 use prism::stats::{check_pass_memory, pixel_mean_variance, render_pass_films};
 use serde::Serialize;
@@ -531,10 +531,13 @@ fn render_command(a: RenderArgs) -> Result<()> {
 /// checkpoint and checkpointed on the way.
 fn render_samples(a: &RenderArgs, s: &Setup, out: &mut Outputs) -> Result<(Vec<[f32; 3]>, Sidecar, RenderStats)> {
     let range = a.sample_range.clone().unwrap_or(0..s.spp);
-    let mut film = match &a.resume {
+    let (mut film, resumed_build) = match &a.resume {
         Some(path) => resume(path, &s.identity, &range)?,
-        None => Film::new(s.identity.width, s.identity.height),
+        None => (Film::new(s.identity.width, s.identity.height), None),
     };
+    let this_build = prism::build_target();
+    let build = combined_build(Some(&this_build), resumed_build.as_deref()).unwrap_or(this_build);
+    warn_mixed_builds(Some(&build));
     let done = range.start + film.spp as u32;
     // Checkpoints are taken between chunks: one sample per pixel each.
     let chunk = if a.checkpoint_every.is_some() { 1 } else { range.len().max(1) as u32 };
@@ -543,24 +546,26 @@ fn render_samples(a: &RenderArgs, s: &Setup, out: &mut Outputs) -> Result<(Vec<[
     let stats = render_chunked(&s.scene, s.integrator.as_ref(), &s.opts, &mut film, done..range.end, chunk, |film| {
         if a.checkpoint_every.is_some_and(|every| last.elapsed() >= Duration::from_secs_f64(every)) {
             let held = range.start..range.start + film.spp as u32;
-            RenderState::save(&checkpoint, &s.identity, std::slice::from_ref(&held), film)?;
+            RenderState::save(&checkpoint, &s.identity, std::slice::from_ref(&held), film, &build)?;
             last = Instant::now();
         }
         Ok(())
     })?;
     let mut sidecar = Sidecar::new(s.identity.clone(), film.spp, std::slice::from_ref(&range), film.dropped);
+    sidecar.build_target.clone_from(&build);
     if writes_state(a) {
         // Staged before the image: see `merge_command`.
         let path = a.out.with_extension("state");
-        out.bytes(&path, &RenderState::encode(&s.identity, std::slice::from_ref(&range), &film)?)?;
+        out.bytes(&path, &RenderState::encode(&s.identity, std::slice::from_ref(&range), &film, Some(&build))?)?;
         sidecar.state = Some(file_name(&path));
     }
     Ok((film.image(), sidecar, stats))
 }
 
-/// Loads a checkpoint's film after checking it belongs to this render and
-/// holds the first samples of `range`.
-fn resume(path: &Path, identity: &Identity, range: &Range<u32>) -> Result<Film> {
+/// Loads a checkpoint's film, and the builds that rendered it, after
+/// checking it belongs to this render and holds the first samples of
+/// `range`.
+fn resume(path: &Path, identity: &Identity, range: &Range<u32>) -> Result<(Film, Option<String>)> {
     let state = RenderState::load(path)?;
     let name = path.display().to_string();
     identity.ensure_same("this render", &state.identity, &name)?;
@@ -570,7 +575,7 @@ fn resume(path: &Path, identity: &Identity, range: &Range<u32>) -> Result<Film> 
         "{name} holds samples {:?}, which are not the first samples of this render's {range:?}",
         state.sample_ranges
     );
-    Ok(state.film)
+    Ok((state.film, state.build_target))
 }
 
 /// --passes: K independent renders, their mean and per-pixel variance.
@@ -636,10 +641,14 @@ fn merge_command(out: &Path, parts: &[PathBuf]) -> Result<()> {
     // if the process dies in between, a new state beside an old image is
     // merged correctly where the reverse would be merged stale.
     let mut outputs = Outputs::default();
-    outputs.bytes(&state, &RenderState::encode(id, &merged.sample_ranges, film)?)?;
+    let build = merged.build_target.as_deref();
+    outputs.bytes(&state, &RenderState::encode(id, &merged.sample_ranges, film, build)?)?;
     outputs.exr(out, id.width, id.height, &film.image())?;
     let mut meta = Sidecar::new(id.clone(), film.spp, &merged.sample_ranges, film.dropped);
     meta.state = Some(file_name(&state));
+    // The parts' builds, not this one's: merging only adds their sums.
+    meta.build_target = build.unwrap_or("not recorded (parts from before session 39)").to_string();
+    warn_mixed_builds(build);
     outputs.json(&sidecar, &meta)?;
     outputs.commit()?;
     eprintln!("merged {} parts: {} spp (samples {:?})", parts.len(), film.spp, merged.sample_ranges);
@@ -651,6 +660,17 @@ fn merge_command(out: &Path, parts: &[PathBuf]) -> Result<()> {
 /// moved (from cluster scratch space, say) without breaking it.
 fn file_name(path: &Path) -> String {
     path.file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_default()
+}
+
+/// Sums of two builds (`RenderState::build_target`) make an unbiased image
+/// but not the bit-identical one either build renders.
+fn warn_mixed_builds(build: Option<&str>) {
+    if let Some(builds) = build.filter(|b| b.contains("; ")) {
+        eprintln!(
+            "warning: these sums were rendered by prism builds for different targets ({builds}): the image is \
+             unbiased, but not bit-identical to a render by any one of them (docs/cluster.md)"
+        );
+    }
 }
 
 fn warn_dropped(d: &DroppedSamples) {

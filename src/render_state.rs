@@ -12,7 +12,8 @@
 //! | 8              | magic `PRISMST\0`                                     |
 //! | 4              | format version (u32)                                  |
 //! | 4              | header length n (u32)                                 |
-//! | n              | header: JSON `Header` (identity, sample ranges, ...)  |
+//! | n              | header: JSON `Header` (identity, sample ranges,       |
+//! |                | dropped samples, build target)                        |
 //! | 48 x w x h     | the film's sums, row-major, r g b as i128             |
 //! | 8              | FNV-1a 64 of everything before (u64)                  |
 //!
@@ -73,6 +74,10 @@ struct Header {
     /// Sample indices held, as sorted disjoint [start, end) ranges.
     sample_ranges: Vec<[u32; 2]>,
     dropped: DroppedSamples,
+    /// `crate::build_target` of the prism that rendered the sums (absent in
+    /// files written before session 39).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    build_target: Option<String>,
 }
 
 /// A film together with what it holds.
@@ -81,6 +86,20 @@ pub struct RenderState {
     /// Sample indices held, sorted and disjoint; their total is `film.spp`.
     pub sample_ranges: Vec<Range<u32>>,
     pub film: Film,
+    /// The build(s) that rendered the sums (`None`: not recorded), as
+    /// `crate::build_target` names them, several joined by "; ". Images are
+    /// bit-identical within one build target only (FMA rounds differently),
+    /// so sums of two builds make an unbiased image that neither renders.
+    pub build_target: Option<String>,
+}
+
+/// The builds of sums added together: each named once, in order; a side
+/// that recorded none adds none.
+pub fn combined_build(ours: Option<&str>, theirs: Option<&str>) -> Option<String> {
+    let mut builds: Vec<&str> = ours.into_iter().chain(theirs).flat_map(|b| b.split("; ")).collect();
+    builds.sort_unstable();
+    builds.dedup();
+    (!builds.is_empty()).then(|| builds.join("; "))
 }
 
 impl RenderState {
@@ -105,6 +124,7 @@ impl RenderState {
         for part in parts {
             let (name, part) = part?;
             merged.identity.ensure_same(&first_name, &part.identity, &name)?;
+            merged.build_target = combined_build(merged.build_target.as_deref(), part.build_target.as_deref());
             owners.extend(part.sample_ranges.iter().map(|r| (r.clone(), name.clone())));
             merged.film.add(&part.film).with_context(|| format!("adding {name}"))?;
         }
@@ -123,16 +143,29 @@ impl RenderState {
 
     /// Writes a state durably (temporary file, fsync, rename). It takes the
     /// parts, not a `RenderState`: a render in progress owns its film apart.
-    pub fn save(path: &Path, identity: &Identity, sample_ranges: &[Range<u32>], film: &Film) -> Result<()> {
-        write_bytes(path, &Self::encode(identity, sample_ranges, film)?)
+    pub fn save(
+        path: &Path,
+        identity: &Identity,
+        sample_ranges: &[Range<u32>],
+        film: &Film,
+        build_target: &str,
+    ) -> Result<()> {
+        write_bytes(path, &Self::encode(identity, sample_ranges, film, Some(build_target))?)
     }
 
-    /// A state file's bytes (the layout above).
-    pub fn encode(identity: &Identity, sample_ranges: &[Range<u32>], film: &Film) -> Result<Vec<u8>> {
+    /// A state file's bytes (the layout above), of sums rendered by
+    /// `build_target`.
+    pub fn encode(
+        identity: &Identity,
+        sample_ranges: &[Range<u32>],
+        film: &Film,
+        build_target: Option<&str>,
+    ) -> Result<Vec<u8>> {
         let header = Header {
             identity: identity.clone(),
             sample_ranges: sample_ranges.iter().map(|r| [r.start, r.end]).collect(),
             dropped: film.dropped,
+            build_target: build_target.map(str::to_string),
         };
         let header = serde_json::to_vec(&header)?;
         let mut bytes = Vec::with_capacity(24 + header.len() + film.sums.len() * 48);
@@ -205,7 +238,7 @@ impl RenderState {
             "sums without samples (sample_ranges empty)"
         );
         film.dropped = header.dropped;
-        Ok(RenderState { identity: header.identity, sample_ranges: ranges, film })
+        Ok(RenderState { identity: header.identity, sample_ranges: ranges, film, build_target: header.build_target })
     }
 }
 
@@ -249,7 +282,7 @@ mod tests {
         let mut film = Film::new(2, 1);
         film.sums = vec![[1, -2, i128::MAX / 4], [3, 4, 5]];
         film.spp = range.len() as u64;
-        RenderState { identity, sample_ranges: vec![range], film }
+        RenderState { identity, sample_ranges: vec![range], film, build_target: Some("x86_64 +avx2 +fma".into()) }
     }
 
     #[test]
@@ -258,7 +291,7 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("prism-state-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("a.state");
-        RenderState::save(&path, &s.identity, &s.sample_ranges, &s.film).unwrap();
+        RenderState::save(&path, &s.identity, &s.sample_ranges, &s.film, "x86_64").unwrap();
         let bytes = std::fs::read(&path).unwrap();
         let back = RenderState::parse(&bytes).unwrap();
         assert_eq!(
@@ -278,7 +311,7 @@ mod tests {
         let mut empty = state(1, 0..1);
         empty.identity.width = 0;
         empty.film = Film::new(0, 1);
-        RenderState::save(&path, &empty.identity, &empty.sample_ranges, &empty.film).unwrap();
+        RenderState::save(&path, &empty.identity, &empty.sample_ranges, &empty.film, "x86_64").unwrap();
         let e = RenderState::load(&path).err().map(|e| format!("{e:#}")).unwrap_or_default();
         assert!(e.contains("film size: width and height must be at least 1"), "{e}");
         std::fs::remove_dir_all(&dir).unwrap();
@@ -311,6 +344,26 @@ mod tests {
         assert_eq!((m.film.dropped.nan, m.film.dropped.total()), (u64::MAX, u64::MAX));
     }
 
+    /// From a review (session 39): a merge records every build that
+    /// rendered its parts (with and without AVX2 and FMA, say), each once,
+    /// however often it merges; a part that records none (written before
+    /// the field) adds none. The builds survive the file.
+    #[test]
+    fn a_merge_records_the_builds_of_its_parts() {
+        let other_build = |range| RenderState { build_target: Some("x86_64".into()), ..state(1, range) };
+        let unrecorded = RenderState { build_target: None, ..state(1, 32..48) };
+        let m = merge(vec![("a".into(), state(1, 0..16)), ("b".into(), other_build(16..32)), ("c".into(), unrecorded)]);
+        let m = m.unwrap();
+        assert_eq!(m.build_target.as_deref(), Some("x86_64; x86_64 +avx2 +fma"));
+        let again = merge(vec![("m".into(), m), ("d".into(), other_build(48..64))]).unwrap();
+        assert_eq!(again.build_target.as_deref(), Some("x86_64; x86_64 +avx2 +fma"));
+        let bytes = RenderState::encode(&again.identity, &again.sample_ranges, &again.film, Some("x86_64")).unwrap();
+        assert_eq!(RenderState::parse(&bytes).unwrap().build_target.as_deref(), Some("x86_64"));
+        let old = RenderState::encode(&again.identity, &again.sample_ranges, &again.film, None).unwrap();
+        assert_eq!(RenderState::parse(&old).unwrap().build_target, None, "a header without the field");
+        assert_eq!(combined_build(None, None), None);
+    }
+
     /// From an audit: a state of no samples whose sums are not zero (prism
     /// writes none; one would add garbage to a merge) is refused, and so is
     /// a file that is no regular file (`/dev/zero` was read until memory
@@ -321,12 +374,12 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("a.state");
         let s = state(1, 0..0);
-        RenderState::save(&path, &s.identity, &s.sample_ranges, &s.film).unwrap();
+        RenderState::save(&path, &s.identity, &s.sample_ranges, &s.film, "x86_64").unwrap();
         let e = RenderState::load(&path).err().map(|e| format!("{e:#}")).unwrap_or_default();
         assert!(e.contains("sums without samples"), "{e}");
         let mut zero = state(1, 0..0);
         zero.film = Film::new(2, 1);
-        RenderState::save(&path, &zero.identity, &zero.sample_ranges, &zero.film).unwrap();
+        RenderState::save(&path, &zero.identity, &zero.sample_ranges, &zero.film, "x86_64").unwrap();
         assert!(RenderState::load(&path).is_ok(), "a state of no samples and zero sums");
         for odd in [Path::new("/dev/zero"), dir.as_path()] {
             let e = RenderState::load(odd).err().map(|e| format!("{e:#}")).unwrap_or_default();

@@ -285,6 +285,48 @@ fn outputs_never_replace_the_scene_or_each_other() {
     let _ = std::fs::remove_dir_all(&d);
 }
 
+/// Sums rendered by two builds (another target, say a node without AVX2)
+/// still add up, into an unbiased image that neither build renders: merge
+/// and resume say so, and the sidecar lists both builds (it named only the
+/// merging binary's; found by a review, session 39).
+#[test]
+fn sums_of_two_builds_are_reported() {
+    use prism::render_state::RenderState;
+    let d = temp_dir("builds");
+    let scene = write(&d, "s.json", scenes::TINY_SCENE);
+    let path = |name: &str| d.join(name).display().to_string();
+    let run = |args: &[&str]| {
+        let o = prism(&[&["render", scene.as_str(), "--threads", "1", "--quiet"], args].concat());
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+        stderr(&o)
+    };
+    let elsewhere = |from: &str, to: &str| {
+        let st = RenderState::load(&d.join(from)).unwrap();
+        let bytes = RenderState::encode(&st.identity, &st.sample_ranges, &st.film, Some("elsewhere")).unwrap();
+        std::fs::write(d.join(to), bytes).unwrap();
+    };
+    let this = prism::build_target();
+    let both = format!("elsewhere; {this}");
+    let sidecar_build = |name: &str| {
+        let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join(name)).unwrap()).unwrap();
+        v["build_target"].as_str().unwrap().to_string()
+    };
+    run(&["--sample-range", "0..1", "--out", &path("p0.exr")]);
+    run(&["--sample-range", "1..2", "--out", &path("p1.exr")]);
+    let o = prism(&["merge", &path("same.exr"), &path("p0.exr"), &path("p1.exr")]);
+    assert!(o.status.success() && !stderr(&o).contains("different targets"), "{}", stderr(&o));
+    assert_eq!(sidecar_build("same.json"), this);
+    elsewhere("p1.state", "p1.state");
+    let o = prism(&["merge", &path("mixed.exr"), &path("p0.exr"), &path("p1.exr")]);
+    assert!(o.status.success() && stderr(&o).contains("different targets"), "{}", stderr(&o));
+    assert_eq!(sidecar_build("mixed.json"), both);
+    elsewhere("p0.state", "r.ckpt");
+    let e = run(&["--spp", "2", "--resume", &path("r.ckpt"), "--out", &path("r.exr")]);
+    assert!(e.contains(&format!("prism builds for different targets ({both})")), "{e}");
+    assert_eq!(sidecar_build("r.json"), both);
+    let _ = std::fs::remove_dir_all(&d);
+}
+
 /// A thread count the process may not start (here, 1024 stacks over a
 /// 1.5 GB address-space limit) is an error before the render, not a
 /// panic inside it (exit 101; found by a review, session 39).
