@@ -186,7 +186,8 @@ struct Sidecar {
     /// The per-strategy images written to --strategies DIR (file names).
     #[serde(skip_serializing_if = "Option::is_none")]
     strategy_images: Option<Vec<String>>,
-    /// This process's work (a resumed render counts only its own).
+    /// This process's work (a resumed render counts only its own; none, and
+    /// no field, when the checkpoint held every sample).
     #[serde(flatten, skip_serializing_if = "Option::is_none")]
     performance: Option<Performance>,
     dropped_samples: DroppedSamples,
@@ -498,7 +499,7 @@ fn render_command(a: RenderArgs) -> Result<()> {
     }
     let secs = stats.wall.as_secs_f64();
     let per_second = |x: f64| if secs > 0.0 { x / secs } else { 0.0 };
-    sidecar.performance = Some(Performance {
+    sidecar.performance = (stats.samples > 0).then(|| Performance {
         threads: stats.threads,
         wall_seconds: secs,
         samples_per_second: per_second(stats.samples as f64),
@@ -516,13 +517,17 @@ fn render_command(a: RenderArgs) -> Result<()> {
         // The outputs are complete: this render's checkpoint has done its job.
         let _ = std::fs::remove_file(checkpoint);
     }
-    eprintln!(
-        "{w}x{h} {} spp{} in {secs:.2} s: {:.2} Msamples/s, {:.1} Mrays/s",
-        sidecar.spp,
-        a.passes.map(|k| format!(" x {k} passes")).unwrap_or_default(),
-        per_second(stats.samples as f64) / 1e6,
-        per_second(stats.rays as f64) / 1e6
-    );
+    if stats.samples == 0 {
+        eprintln!("{w}x{h} {} spp: every sample was in the checkpoint, none left to render", sidecar.spp);
+    } else {
+        eprintln!(
+            "{w}x{h} {} spp{} in {secs:.2} s: {:.2} Msamples/s, {:.1} Mrays/s",
+            sidecar.spp,
+            a.passes.map(|k| format!(" x {k} passes")).unwrap_or_default(),
+            per_second(stats.samples as f64) / 1e6,
+            per_second(stats.rays as f64) / 1e6
+        );
+    }
     warn_dropped(&sidecar.dropped_samples);
     Ok(())
 }

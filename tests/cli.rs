@@ -327,6 +327,31 @@ fn sums_of_two_builds_are_reported() {
     let _ = std::fs::remove_dir_all(&d);
 }
 
+/// A resume that finds every sample in its checkpoint renders nothing:
+/// its sidecar has no performance figures (it had 0 threads and 0 s, as if
+/// measured; found by a review, session 39), and its image is the part's.
+#[test]
+fn a_resume_with_nothing_left_claims_no_performance() {
+    let d = temp_dir("nothing-left");
+    let scene = write(&d, "s.json", scenes::TINY_SCENE);
+    let path = |name: &str| d.join(name).display().to_string();
+    let render = |extra: &[&str]| {
+        let o = prism(&[&["render", scene.as_str(), "--threads", "1", "--quiet"], extra].concat());
+        assert!(o.status.success(), "{extra:?}: {}", stderr(&o));
+        stderr(&o)
+    };
+    render(&["--sample-range", "0..2", "--out", &path("p.exr")]);
+    let e = render(&["--sample-range", "0..2", "--resume", &path("p.state"), "--out", &path("q.exr")]);
+    assert!(e.contains("none left to render"), "{e}");
+    let sidecar: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join("q.json")).unwrap()).unwrap();
+    for field in ["threads", "wall_seconds", "samples_per_second", "rays", "mrays_per_second"] {
+        assert!(sidecar.get(field).is_none(), "{field} in {sidecar}");
+    }
+    assert_eq!(sidecar["spp"], 2);
+    assert_eq!(std::fs::read(d.join("p.exr")).unwrap(), std::fs::read(d.join("q.exr")).unwrap());
+    let _ = std::fs::remove_dir_all(&d);
+}
+
 /// A thread count the process may not start (here, 1024 stacks over a
 /// 1.5 GB address-space limit) is an error before the render, not a
 /// panic inside it (exit 101; found by a review, session 39).
