@@ -186,6 +186,9 @@ struct Sidecar {
     /// The per-strategy images written to --strategies DIR (file names).
     #[serde(skip_serializing_if = "Option::is_none")]
     strategy_images: Option<Vec<String>>,
+    /// The values those images refused, counted apart from the film's.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    strategy_records_dropped: Option<DroppedSamples>,
     /// This process's work (a resumed render counts only its own; none, and
     /// no field, when the checkpoint held every sample).
     #[serde(flatten, skip_serializing_if = "Option::is_none")]
@@ -216,6 +219,7 @@ impl Sidecar {
             variance: None,
             state: None,
             strategy_images: None,
+            strategy_records_dropped: None,
             performance: None,
             dropped_samples: dropped,
             prism_version: env!("CARGO_PKG_VERSION"),
@@ -285,7 +289,7 @@ fn reference_command(a: ReferenceArgs) -> Result<()> {
     );
     prism::reference::write_reference(&a.out, &image, &meta)?;
     eprintln!("{} passes x {} spp in {:.1} s", a.passes, a.spp, meta.wall_seconds);
-    warn_dropped(&meta.dropped_samples);
+    warn_dropped("samples", &meta.dropped_samples);
     Ok(())
 }
 
@@ -528,7 +532,7 @@ fn render_command(a: RenderArgs) -> Result<()> {
             per_second(stats.rays as f64) / 1e6
         );
     }
-    warn_dropped(&sidecar.dropped_samples);
+    warn_dropped("samples", &sidecar.dropped_samples);
     Ok(())
 }
 
@@ -624,6 +628,8 @@ fn render_strategies(s: &Setup, dir: &Path, out: &mut Outputs) -> Result<(Vec<[f
     let names = images.stage_exrs(dir, out)?;
     let mut sidecar = Sidecar::new(s.identity.clone(), film.spp, std::slice::from_ref(&(0..s.spp)), film.dropped);
     sidecar.strategy_images = Some(names);
+    sidecar.strategy_records_dropped = Some(images.dropped);
+    warn_dropped("values of the per-strategy images", &images.dropped);
     Ok((film.image(), sidecar, stats))
 }
 
@@ -657,7 +663,7 @@ fn merge_command(out: &Path, parts: &[PathBuf]) -> Result<()> {
     outputs.json(&sidecar, &meta)?;
     outputs.commit()?;
     eprintln!("merged {} parts: {} spp (samples {:?})", parts.len(), film.spp, merged.sample_ranges);
-    warn_dropped(&film.dropped);
+    warn_dropped("samples", &film.dropped);
     Ok(())
 }
 
@@ -678,10 +684,11 @@ fn warn_mixed_builds(build: Option<&str>) {
     }
 }
 
-fn warn_dropped(d: &DroppedSamples) {
+/// `what`: "samples", or what else was dropped.
+fn warn_dropped(what: &str, d: &DroppedSamples) {
     if d.total() > 0 {
         eprintln!(
-            "warning: dropped {} samples ({} NaN, {} infinite, {} negative); see the sidecar",
+            "warning: dropped {} {what} ({} NaN, {} infinite, {} negative); see the sidecar",
             d.total(),
             d.nan,
             d.infinite,

@@ -631,11 +631,13 @@ impl TaskStrategies {
     /// pixel `local` (of `n`), t = 1 ones kept as splats.
     fn add(&mut self, records: &[StrategyRecord], local: usize, n: usize, cmf: &SampledCmf, image: UVec2) {
         for r in records {
-            let (Some(w), Some(u)) = (self.dropped.admit(r.weighted, cmf), self.dropped.admit(r.unweighted, cmf))
-            else {
+            // Each image refuses its own value: an infinite unweighted
+            // estimate must not take the weighted one (the film's share) away.
+            let (w, u) = (self.dropped.admit(r.weighted, cmf), self.dropped.admit(r.unweighted, cmf));
+            if w.is_none() && u.is_none() {
                 continue;
-            };
-            let rgb = [w, u].map(|c| c.to_array().map(f64::from));
+            }
+            let rgb = [w, u].map(|c| c.unwrap_or(Vec3::ZERO).to_array().map(f64::from));
             if r.t == 1 {
                 self.splats.push((splat_pixel(r.raster, image), r.s, r.t, rgb));
             } else {

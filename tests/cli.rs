@@ -81,6 +81,16 @@ fn dropped_samples_are_reported_by_render_reference_and_converge() {
     let o = run(format!("render {scene} --spp 2 --quiet --out {}", img.display()));
     assert!(o.status.success() && stderr(&o).contains("warning: dropped"), "{}", stderr(&o));
     assert!(sidecar("img.json")["dropped_samples"]["infinite"].as_u64().unwrap() > 0);
+    // BDPT's per-strategy images count what they refuse apart (they were
+    // never reported; a review, session 39).
+    let (strategies, bd) = (d.join("st"), d.join("bd.exr"));
+    let o = run(format!(
+        "render {scene} --integrator bdpt --spp 2 --quiet --strategies {} --out {}",
+        strategies.display(),
+        bd.display()
+    ));
+    assert!(o.status.success() && stderr(&o).contains("values of the per-strategy images"), "{}", stderr(&o));
+    assert!(sidecar("bd.json")["strategy_records_dropped"]["infinite"].as_u64().unwrap() > 0);
     let o = run(format!("reference {scene} --spp 1 --passes 2 --width 8 --height 8 --out {}", reference.display()));
     assert!(o.status.success() && stderr(&o).contains("warning: dropped"), "{}", stderr(&o));
     assert!(sidecar("ref.json")["dropped_samples"]["infinite"].as_u64().unwrap() > 0);
@@ -480,6 +490,7 @@ fn strategy_images_are_one_renders() {
             .collect();
         here.sort();
         assert_eq!(here, listed, "depth {depth}");
+        assert_eq!(sidecar["strategy_records_dropped"]["infinite"], 0, "depth {depth}");
         listed
     };
     let deep = render("3");
