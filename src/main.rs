@@ -542,12 +542,12 @@ fn render_command(a: RenderArgs) -> Result<()> {
 fn render_samples(a: &RenderArgs, s: &Setup, out: &mut Outputs) -> Result<(Vec<[f32; 3]>, Sidecar, RenderStats)> {
     let range = a.sample_range.clone().unwrap_or(0..s.spp);
     let (mut film, resumed_build) = match &a.resume {
-        Some(path) => resume(path, &s.identity, &range)?,
+        Some(path) => resume(path, &s.identity, &range).map(|(film, build)| (film, Some(build)))?,
         None => (Film::new(s.identity.width, s.identity.height), None),
     };
+    // The builds of the sums once this render has added to them.
     let this_build = prism::build_target();
-    let build = combined_build(Some(&this_build), resumed_build.as_deref()).unwrap_or(this_build);
-    warn_mixed_builds(Some(&build));
+    let build = resumed_build.as_deref().map_or(this_build.clone(), |b| combined_build(&this_build, b));
     let done = range.start + film.spp as u32;
     // Checkpoints are taken between chunks of one packet of samples per
     // pixel (`LANES`): a chunk of one sample per pixel, as until session
@@ -563,12 +563,15 @@ fn render_samples(a: &RenderArgs, s: &Setup, out: &mut Outputs) -> Result<(Vec<[
         }
         Ok(())
     })?;
+    // A resume that found every sample in its checkpoint added nothing.
+    let build = if stats.samples == 0 { resumed_build.unwrap_or(this_build) } else { build };
+    warn_mixed_builds(&build);
     let mut sidecar = Sidecar::new(s.identity.clone(), film.spp, std::slice::from_ref(&range), film.dropped);
     sidecar.build_target.clone_from(&build);
     if writes_state(a) {
         // Staged before the image: see `merge_command`.
         let path = a.out.with_extension("state");
-        out.bytes(&path, &RenderState::encode(&s.identity, std::slice::from_ref(&range), &film, Some(&build))?)?;
+        out.bytes(&path, &RenderState::encode(&s.identity, std::slice::from_ref(&range), &film, &build)?)?;
         sidecar.state = Some(file_name(&path));
     }
     Ok((film.image(), sidecar, stats))
@@ -577,7 +580,7 @@ fn render_samples(a: &RenderArgs, s: &Setup, out: &mut Outputs) -> Result<(Vec<[
 /// Loads a checkpoint's film, and the builds that rendered it, after
 /// checking it belongs to this render and holds the first samples of
 /// `range`.
-fn resume(path: &Path, identity: &Identity, range: &Range<u32>) -> Result<(Film, Option<String>)> {
+fn resume(path: &Path, identity: &Identity, range: &Range<u32>) -> Result<(Film, String)> {
     let state = RenderState::load(path)?;
     let name = path.display().to_string();
     identity.ensure_same("this render", &state.identity, &name)?;
@@ -655,13 +658,13 @@ fn merge_command(out: &Path, parts: &[PathBuf]) -> Result<()> {
     // if the process dies in between, a new state beside an old image is
     // merged correctly where the reverse would be merged stale.
     let mut outputs = Outputs::default();
-    let build = merged.build_target.as_deref();
+    let build = &merged.build_target;
     outputs.bytes(&state, &RenderState::encode(id, &merged.sample_ranges, film, build)?)?;
     outputs.exr(out, id.width, id.height, &film.image())?;
     let mut meta = Sidecar::new(id.clone(), film.spp, &merged.sample_ranges, film.dropped);
     meta.state = Some(file_name(&state));
     // The parts' builds, not this one's: merging only adds their sums.
-    meta.build_target = build.unwrap_or("not recorded (parts from before session 39)").to_string();
+    meta.build_target.clone_from(build);
     warn_mixed_builds(build);
     outputs.json(&sidecar, &meta)?;
     outputs.commit()?;
@@ -676,13 +679,14 @@ fn file_name(path: &Path) -> String {
     path.file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_default()
 }
 
-/// Sums of two builds (`RenderState::build_target`) make an unbiased image
-/// but not the bit-identical one either build renders.
-fn warn_mixed_builds(build: Option<&str>) {
-    if let Some(builds) = build.filter(|b| b.contains("; ")) {
+/// Sums of two builds (`RenderState::build_target`), or of a build and a
+/// file that recorded none, make an unbiased image but not (knowingly) the
+/// bit-identical one either build renders.
+fn warn_mixed_builds(builds: &str) {
+    if builds.contains("; ") {
         eprintln!(
-            "warning: these sums were rendered by prism builds for different targets ({builds}): the image is \
-             unbiased, but not bit-identical to a render by any one of them (docs/cluster.md)"
+            "warning: these sums were rendered by prism builds for different targets, or not recorded ({builds}): \
+             the image is unbiased, but not bit-identical to a render by any one of them (docs/cluster.md)"
         );
     }
 }

@@ -262,13 +262,27 @@ pub const MAX_THREADS: usize = 1024;
 /// A command-line thread count: 0 (all cores) to `MAX_THREADS`, and as
 /// many threads as the process may start (a memory or process limit can
 /// refuse them): a pool is started once here, so that a limit is an error
-/// before the render rather than a panic in it.
+/// before the render rather than a panic in it. Its threads have exited
+/// when this returns (a dropped pool's end on their own time), so the
+/// render's pool does not count against the limit beside them.
 pub fn check_threads(threads: usize) -> anyhow::Result<()> {
     anyhow::ensure!(threads <= MAX_THREADS, "--threads {threads}: at most {MAX_THREADS} (0 = all cores)");
-    rayon::ThreadPoolBuilder::new()
+    let exited = std::sync::Arc::new((std::sync::Mutex::new(0usize), std::sync::Condvar::new()));
+    let on_exit = exited.clone();
+    let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
+        .exit_handler(move |_| {
+            let (count, changed) = &*on_exit;
+            *count.lock().unwrap_or_else(|e| e.into_inner()) += 1;
+            changed.notify_all();
+        })
         .build()
         .map_err(|e| anyhow::anyhow!("--threads {threads}: cannot start the worker threads: {e}"))?;
+    let started = pool.current_num_threads();
+    drop(pool);
+    let (count, changed) = &*exited;
+    let count = count.lock().unwrap_or_else(|e| e.into_inner());
+    drop(changed.wait_while(count, |n| *n < started).unwrap_or_else(|e| e.into_inner()));
     Ok(())
 }
 

@@ -5,7 +5,8 @@
 //! (`--sample-range`), so that resumed and merged renders are bit-identical
 //! to one uninterrupted run (docs/cluster.md).
 //!
-//! File format, version 1 (little-endian):
+//! File format, version 2 (little-endian; version 1, read too, is the same
+//! without the header's build target):
 //!
 //! | bytes          | content                                               |
 //! |----------------|-------------------------------------------------------|
@@ -27,7 +28,10 @@ use std::ops::Range;
 use std::path::Path;
 
 const MAGIC: &[u8; 8] = b"PRISMST\0";
-const VERSION: u32 = 1;
+const VERSION: u32 = 2;
+/// The oldest version read: 1, whose header has no `build_target`. (A
+/// prism that reads version 1 only refuses version 2 by its number.)
+const OLDEST_VERSION: u32 = 1;
 
 /// The largest state file: the fixed fields, a header of up to 64 MiB (its
 /// sample ranges), and the sums of the largest film.
@@ -74,8 +78,8 @@ struct Header {
     /// Sample indices held, as sorted disjoint [start, end) ranges.
     sample_ranges: Vec<[u32; 2]>,
     dropped: DroppedSamples,
-    /// `crate::build_target` of the prism that rendered the sums (absent in
-    /// files written before session 39).
+    /// `crate::build_target` of the prism(s) that rendered the sums
+    /// (`combined_build`; absent in version 1).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     build_target: Option<String>,
 }
@@ -86,20 +90,24 @@ pub struct RenderState {
     /// Sample indices held, sorted and disjoint; their total is `film.spp`.
     pub sample_ranges: Vec<Range<u32>>,
     pub film: Film,
-    /// The build(s) that rendered the sums (`None`: not recorded), as
-    /// `crate::build_target` names them, several joined by "; ". Images are
-    /// bit-identical within one build target only (FMA rounds differently),
-    /// so sums of two builds make an unbiased image that neither renders.
-    pub build_target: Option<String>,
+    /// The build(s) that rendered the sums, as `crate::build_target` names
+    /// them, several joined by "; " (`combined_build`; `UNRECORDED_BUILD`
+    /// for a version 1 file). Images are bit-identical within one build
+    /// target only (FMA rounds differently), so sums of two builds make an
+    /// unbiased image that neither renders.
+    pub build_target: String,
 }
 
-/// The builds of sums added together: each named once, in order; a side
-/// that recorded none adds none.
-pub fn combined_build(ours: Option<&str>, theirs: Option<&str>) -> Option<String> {
-    let mut builds: Vec<&str> = ours.into_iter().chain(theirs).flat_map(|b| b.split("; ")).collect();
+/// What a state's builds are called where a version 1 file recorded none.
+pub const UNRECORDED_BUILD: &str = "not recorded";
+
+/// The builds of sums added together, each named once, in order ("; "
+/// between them).
+pub fn combined_build(ours: &str, theirs: &str) -> String {
+    let mut builds: Vec<&str> = ours.split("; ").chain(theirs.split("; ")).collect();
     builds.sort_unstable();
     builds.dedup();
-    (!builds.is_empty()).then(|| builds.join("; "))
+    builds.join("; ")
 }
 
 impl RenderState {
@@ -124,7 +132,7 @@ impl RenderState {
         for part in parts {
             let (name, part) = part?;
             merged.identity.ensure_same(&first_name, &part.identity, &name)?;
-            merged.build_target = combined_build(merged.build_target.as_deref(), part.build_target.as_deref());
+            merged.build_target = combined_build(&merged.build_target, &part.build_target);
             owners.extend(part.sample_ranges.iter().map(|r| (r.clone(), name.clone())));
             merged.film.add(&part.film).with_context(|| format!("adding {name}"))?;
         }
@@ -150,27 +158,31 @@ impl RenderState {
         film: &Film,
         build_target: &str,
     ) -> Result<()> {
-        write_bytes(path, &Self::encode(identity, sample_ranges, film, Some(build_target))?)
+        write_bytes(path, &Self::encode(identity, sample_ranges, film, build_target)?)
     }
 
     /// A state file's bytes (the layout above), of sums rendered by
-    /// `build_target`.
+    /// `build_target` (`combined_build`).
     pub fn encode(
         identity: &Identity,
         sample_ranges: &[Range<u32>],
         film: &Film,
-        build_target: Option<&str>,
+        build_target: &str,
     ) -> Result<Vec<u8>> {
         let header = Header {
             identity: identity.clone(),
             sample_ranges: sample_ranges.iter().map(|r| [r.start, r.end]).collect(),
             dropped: film.dropped,
-            build_target: build_target.map(str::to_string),
+            build_target: Some(build_target.to_string()),
         };
-        let header = serde_json::to_vec(&header)?;
+        Self::encode_version(VERSION, &header, film)
+    }
+
+    fn encode_version(version: u32, header: &Header, film: &Film) -> Result<Vec<u8>> {
+        let header = serde_json::to_vec(header)?;
         let mut bytes = Vec::with_capacity(24 + header.len() + film.sums.len() * 48);
         bytes.extend_from_slice(MAGIC);
-        bytes.extend_from_slice(&VERSION.to_le_bytes());
+        bytes.extend_from_slice(&version.to_le_bytes());
         bytes.extend_from_slice(&(header.len() as u32).to_le_bytes());
         bytes.extend_from_slice(&header);
         for c in film.sums.iter().flatten() {
@@ -199,7 +211,10 @@ impl RenderState {
     fn parse(bytes: &[u8]) -> Result<RenderState> {
         ensure!(bytes.len() >= 24 && bytes.starts_with(MAGIC), "no prism state header (bad magic)");
         let version = u32::from_le_bytes(bytes[8..12].try_into()?);
-        ensure!(version == VERSION, "format version {version}; this prism reads version {VERSION}");
+        ensure!(
+            (OLDEST_VERSION..=VERSION).contains(&version),
+            "format version {version}; this prism reads versions {OLDEST_VERSION} to {VERSION}"
+        );
         let (body, sum) = bytes.split_at(bytes.len() - 8);
         ensure!(
             fnv1a(body) == u64::from_le_bytes(sum.try_into()?),
@@ -238,7 +253,8 @@ impl RenderState {
             "sums without samples (sample_ranges empty)"
         );
         film.dropped = header.dropped;
-        Ok(RenderState { identity: header.identity, sample_ranges: ranges, film, build_target: header.build_target })
+        let build_target = header.build_target.unwrap_or_else(|| UNRECORDED_BUILD.to_string());
+        Ok(RenderState { identity: header.identity, sample_ranges: ranges, film, build_target })
     }
 }
 
@@ -282,7 +298,7 @@ mod tests {
         let mut film = Film::new(2, 1);
         film.sums = vec![[1, -2, i128::MAX / 4], [3, 4, 5]];
         film.spp = range.len() as u64;
-        RenderState { identity, sample_ranges: vec![range], film, build_target: Some("x86_64 +avx2 +fma".into()) }
+        RenderState { identity, sample_ranges: vec![range], film, build_target: "x86_64 +avx2 +fma".into() }
     }
 
     #[test]
@@ -346,22 +362,32 @@ mod tests {
 
     /// From a review (session 39): a merge records every build that
     /// rendered its parts (with and without AVX2 and FMA, say), each once,
-    /// however often it merges; a part that records none (written before
-    /// the field) adds none. The builds survive the file.
+    /// however often it merges, and a part of a version 1 file (which
+    /// records none) as "not recorded". The builds survive the file, and a
+    /// version 1 file is still read.
     #[test]
     fn a_merge_records_the_builds_of_its_parts() {
-        let other_build = |range| RenderState { build_target: Some("x86_64".into()), ..state(1, range) };
-        let unrecorded = RenderState { build_target: None, ..state(1, 32..48) };
-        let m = merge(vec![("a".into(), state(1, 0..16)), ("b".into(), other_build(16..32)), ("c".into(), unrecorded)]);
-        let m = m.unwrap();
-        assert_eq!(m.build_target.as_deref(), Some("x86_64; x86_64 +avx2 +fma"));
+        let other_build = |range| RenderState { build_target: "x86_64".into(), ..state(1, range) };
+        let m = merge(vec![("a".into(), state(1, 0..16)), ("b".into(), other_build(16..32))]).unwrap();
+        assert_eq!(m.build_target, "x86_64; x86_64 +avx2 +fma");
         let again = merge(vec![("m".into(), m), ("d".into(), other_build(48..64))]).unwrap();
-        assert_eq!(again.build_target.as_deref(), Some("x86_64; x86_64 +avx2 +fma"));
-        let bytes = RenderState::encode(&again.identity, &again.sample_ranges, &again.film, Some("x86_64")).unwrap();
-        assert_eq!(RenderState::parse(&bytes).unwrap().build_target.as_deref(), Some("x86_64"));
-        let old = RenderState::encode(&again.identity, &again.sample_ranges, &again.film, None).unwrap();
-        assert_eq!(RenderState::parse(&old).unwrap().build_target, None, "a header without the field");
-        assert_eq!(combined_build(None, None), None);
+        assert_eq!(again.build_target, "x86_64; x86_64 +avx2 +fma");
+        let bytes = RenderState::encode(&again.identity, &again.sample_ranges, &again.film, "x86_64").unwrap();
+        assert_eq!(RenderState::parse(&bytes).unwrap().build_target, "x86_64");
+        let header = |build| Header {
+            identity: again.identity.clone(),
+            sample_ranges: vec![[64, 80]],
+            dropped: DroppedSamples::default(),
+            build_target: build,
+        };
+        let v1 = RenderState::encode_version(1, &header(None), &again.film).unwrap();
+        let v1 = RenderState::parse(&v1).unwrap();
+        assert_eq!(v1.build_target, UNRECORDED_BUILD, "a version 1 header");
+        let mixed = merge(vec![("v1".into(), v1), ("d".into(), other_build(80..96))]).unwrap();
+        assert_eq!(mixed.build_target, "not recorded; x86_64");
+        let v3 = RenderState::encode_version(3, &header(Some("x86_64".into())), &again.film).unwrap();
+        let e = RenderState::parse(&v3).err().map(|e| e.to_string()).unwrap_or_default();
+        assert_eq!(e, "format version 3; this prism reads versions 1 to 2");
     }
 
     /// From an audit: a state of no samples whose sums are not zero (prism

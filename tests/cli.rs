@@ -312,7 +312,7 @@ fn sums_of_two_builds_are_reported() {
     };
     let elsewhere = |from: &str, to: &str| {
         let st = RenderState::load(&d.join(from)).unwrap();
-        let bytes = RenderState::encode(&st.identity, &st.sample_ranges, &st.film, Some("elsewhere")).unwrap();
+        let bytes = RenderState::encode(&st.identity, &st.sample_ranges, &st.film, "elsewhere").unwrap();
         std::fs::write(d.join(to), bytes).unwrap();
     };
     let this = prism::build_target();
@@ -332,8 +332,13 @@ fn sums_of_two_builds_are_reported() {
     assert_eq!(sidecar_build("mixed.json"), both);
     elsewhere("p0.state", "r.ckpt");
     let e = run(&["--spp", "2", "--resume", &path("r.ckpt"), "--out", &path("r.exr")]);
-    assert!(e.contains(&format!("prism builds for different targets ({both})")), "{e}");
+    assert!(e.contains(&format!("different targets, or not recorded ({both})")), "{e}");
     assert_eq!(sidecar_build("r.json"), both);
+    // A resume that renders nothing adds no build of its own.
+    elsewhere("p0.state", "n.ckpt");
+    let e = run(&["--sample-range", "0..1", "--resume", &path("n.ckpt"), "--out", &path("n.exr")]);
+    assert!(!e.contains("different targets"), "{e}");
+    assert_eq!(sidecar_build("n.json"), "elsewhere");
     let _ = std::fs::remove_dir_all(&d);
 }
 

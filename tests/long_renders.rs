@@ -198,7 +198,7 @@ fn merge_refuses_mismatched_parts() {
     let _ = std::fs::remove_dir_all(&d);
 }
 
-/// A render checkpointing after every sample per pixel, killed (SIGKILL) at
+/// A render checkpointing after every chunk (8 samples per pixel), killed (SIGKILL) at
 /// random times and resumed until it finishes, gives the bits of an
 /// uninterrupted render. The kill times come from the clock; the seed is
 /// printed so that a failure can be replayed. On a host fast enough to
@@ -271,7 +271,7 @@ fn killed_and_resumed_render_is_bit_identical() {
 }
 
 /// A checkpointed render of the most samples a pixel can take (2^32 - 1)
-/// starts, and takes its first checkpoint: its one-sample chunks are made
+/// starts, and takes its first checkpoint: its chunks (8 samples each) are made
 /// as they come. (A list of them all, 32 GiB, was refused by the allocator
 /// and the process aborted before rendering.)
 #[test]
