@@ -318,7 +318,7 @@ fn bad_checkpoints_are_clear_errors() {
         args.into_iter().map(String::from).collect::<Vec<_>>()
     };
     let mut future = good.clone();
-    future[8] = 2;
+    future[8] = 9;
     let mut flipped = good.clone();
     flipped[good.len() / 2] ^= 0x10;
     let damaged: [(&str, &[u8], &str); 5] = [
@@ -326,7 +326,7 @@ fn bad_checkpoints_are_clear_errors() {
         ("flipped", &flipped, "checksum"),
         ("empty", b"", "magic"),
         ("foreign", &std::fs::read(&full).unwrap(), "magic"),
-        ("future", &future, "version 2"),
+        ("future", &future, "version 9"),
     ];
     let check = |args: Vec<String>, file: &Path, what: &str| {
         let e = fails(&args.iter().map(String::as_str).collect::<Vec<_>>());
