@@ -23,6 +23,18 @@ fn write(dir: &Path, name: &str, text: &str) -> String {
     p.display().to_string()
 }
 
+/// `prism render SCENE` on one thread with `args`, which must succeed: its
+/// stderr.
+fn render_ok(scene: &str, args: &[&str]) -> String {
+    let o = prism(&[&["render", scene, "--threads", "1", "--quiet"], args].concat());
+    assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+    stderr(&o)
+}
+
+fn read_json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
 #[test]
 fn renders_exr_png_and_sidecar() {
     let d = temp_dir("ok");
@@ -305,11 +317,7 @@ fn sums_of_two_builds_are_reported() {
     let d = temp_dir("builds");
     let scene = write(&d, "s.json", scenes::TINY_SCENE);
     let path = |name: &str| d.join(name).display().to_string();
-    let run = |args: &[&str]| {
-        let o = prism(&[&["render", scene.as_str(), "--threads", "1", "--quiet"], args].concat());
-        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
-        stderr(&o)
-    };
+    let run = |args: &[&str]| render_ok(&scene, args);
     let elsewhere = |from: &str, to: &str| {
         let st = RenderState::load(&d.join(from)).unwrap();
         let bytes = RenderState::encode(&st.identity, &st.sample_ranges, &st.film, "elsewhere").unwrap();
@@ -317,10 +325,7 @@ fn sums_of_two_builds_are_reported() {
     };
     let this = prism::build_target();
     let both = format!("elsewhere; {this}");
-    let sidecar_build = |name: &str| {
-        let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join(name)).unwrap()).unwrap();
-        v["build_target"].as_str().unwrap().to_string()
-    };
+    let sidecar_build = |name: &str| read_json(&d.join(name))["build_target"].as_str().unwrap().to_string();
     run(&["--sample-range", "0..1", "--out", &path("p0.exr")]);
     run(&["--sample-range", "1..2", "--out", &path("p1.exr")]);
     let o = prism(&["merge", &path("same.exr"), &path("p0.exr"), &path("p1.exr")]);
@@ -350,15 +355,10 @@ fn a_resume_with_nothing_left_claims_no_performance() {
     let d = temp_dir("nothing-left");
     let scene = write(&d, "s.json", scenes::TINY_SCENE);
     let path = |name: &str| d.join(name).display().to_string();
-    let render = |extra: &[&str]| {
-        let o = prism(&[&["render", scene.as_str(), "--threads", "1", "--quiet"], extra].concat());
-        assert!(o.status.success(), "{extra:?}: {}", stderr(&o));
-        stderr(&o)
-    };
-    render(&["--sample-range", "0..2", "--out", &path("p.exr")]);
-    let e = render(&["--sample-range", "0..2", "--resume", &path("p.state"), "--out", &path("q.exr")]);
+    render_ok(&scene, &["--sample-range", "0..2", "--out", &path("p.exr")]);
+    let e = render_ok(&scene, &["--sample-range", "0..2", "--resume", &path("p.state"), "--out", &path("q.exr")]);
     assert!(e.contains("none left to render"), "{e}");
-    let sidecar: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join("q.json")).unwrap()).unwrap();
+    let sidecar = read_json(&d.join("q.json"));
     for field in ["threads", "wall_seconds", "samples_per_second", "rays", "mrays_per_second"] {
         assert!(sidecar.get(field).is_none(), "{field} in {sidecar}");
     }
