@@ -643,7 +643,12 @@ fn merge_command(out: &Path, parts: &[PathBuf]) -> Result<()> {
     ensure_exr("the merge output", out)?;
     for part in parts {
         // Its .state is read: a checkpoint's name would read a stale one.
-        ensure_exr("a part", part)?;
+        let named = |ext: &str| part.extension().is_some_and(|e| e.eq_ignore_ascii_case(ext));
+        ensure!(
+            named("exr") || named("state"),
+            "a part must name its .exr image or its .state file, got {}",
+            part.display()
+        );
     }
     let inputs: Vec<PathBuf> = parts.iter().map(|p| p.with_extension("state")).collect();
     let (state, sidecar) = (out.with_extension("state"), out.with_extension("json"));

@@ -287,7 +287,9 @@ fn outputs_never_replace_the_scene_or_each_other() {
     fails_with(prism(&["merge", &path("p1.exr"), &path("p1.exr")]), "would replace the part state");
     assert_eq!(std::fs::read(d.join("p1.state")).unwrap(), state, "the part's state changed");
     // Its .state would be read: a checkpoint's name is refused.
-    fails_with(prism(&["merge", &path("m.exr"), &path("p1.ckpt")]), "a part must name an .exr file");
+    fails_with(prism(&["merge", &path("m.exr"), &path("p1.ckpt")]), "a part must name its .exr image or its .state");
+    let by_state = prism(&["merge", &path("m.exr"), &path("p1.state")]);
+    assert!(by_state.status.success(), "a part named by its state: {}", stderr(&by_state));
 
     // A sidecar replaces an earlier sidecar, never another JSON file: here a
     // second scene, which no input names (found by a review, session 39:
