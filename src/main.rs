@@ -13,7 +13,7 @@ use prism::render::{
     check_threads, is_strategy_image, render_chunked, render_with_strategies, RenderOptions, RenderStats,
     StrategyImages,
 };
-use prism::render_state::{combined_build, fnv1a, Identity, RenderState};
+use prism::render_state::{fnv1a, Identity, Provenance, RenderState};
 use prism::scene::{load_scene, Scene};
 use prism::stats::{check_pass_memory, pixel_mean_variance, render_pass_films};
 use serde::Serialize;
@@ -196,7 +196,7 @@ struct Sidecar {
     performance: Option<Performance>,
     dropped_samples: DroppedSamples,
     prism_version: &'static str,
-    commit: &'static str,
+    commit: String,
     /// `prism::build_target`: images are bit-identical within one.
     build_target: String,
 }
@@ -224,8 +224,25 @@ impl Sidecar {
             performance: None,
             dropped_samples: dropped,
             prism_version: env!("CARGO_PKG_VERSION"),
-            commit: env!("PRISM_COMMIT"),
+            commit: env!("PRISM_COMMIT").to_string(),
             build_target: prism::build_target(),
+        }
+    }
+
+    /// The commit(s) and build(s) of the sums written (a merge's parts', a
+    /// resumed render's and its checkpoint's), with a warning when they are
+    /// several: such sums make an unbiased image, but not (knowingly) the
+    /// bit-identical one that any of them renders.
+    fn set_provenance(&mut self, p: &Provenance) {
+        self.commit.clone_from(&p.commit);
+        self.build_target.clone_from(&p.build_target);
+        if p.is_mixed() {
+            eprintln!(
+                "warning: these sums were rendered by different prism commits or builds, or ones not recorded \
+                 (commit {}; build {}): the image is unbiased, but not bit-identical to a render by any one of \
+                 them (docs/cluster.md)",
+                p.commit, p.build_target
+            );
         }
     }
 }
@@ -541,13 +558,13 @@ fn render_command(a: RenderArgs) -> Result<()> {
 /// checkpoint and checkpointed on the way.
 fn render_samples(a: &RenderArgs, s: &Setup, out: &mut Outputs) -> Result<(Vec<[f32; 3]>, Sidecar, RenderStats)> {
     let range = a.sample_range.clone().unwrap_or(0..s.spp);
-    let (mut film, resumed_build) = match &a.resume {
-        Some(path) => resume(path, &s.identity, &range).map(|(film, build)| (film, Some(build)))?,
+    let (mut film, resumed) = match &a.resume {
+        Some(path) => resume(path, &s.identity, &range).map(|(film, made_by)| (film, Some(made_by)))?,
         None => (Film::new(s.identity.width, s.identity.height), None),
     };
-    // The builds of the sums once this render has added to them.
-    let this_build = prism::build_target();
-    let build = resumed_build.as_deref().map_or(this_build.clone(), |b| combined_build(&this_build, b));
+    // Who rendered the sums once this render has added to them.
+    let this = Provenance::this();
+    let made_by = resumed.as_ref().map_or(this.clone(), |r| this.combined(r));
     let done = range.start + film.spp as u32;
     // Checkpoints are taken between chunks of one packet of samples per
     // pixel (`LANES`): a chunk of one sample per pixel, as until session
@@ -558,29 +575,28 @@ fn render_samples(a: &RenderArgs, s: &Setup, out: &mut Outputs) -> Result<(Vec<[
     let stats = render_chunked(&s.scene, s.integrator.as_ref(), &s.opts, &mut film, done..range.end, chunk, |film| {
         if a.checkpoint_every.is_some_and(|every| last.elapsed() >= Duration::from_secs_f64(every)) {
             let held = range.start..range.start + film.spp as u32;
-            RenderState::save(&checkpoint, &s.identity, std::slice::from_ref(&held), film, &build)?;
+            RenderState::save(&checkpoint, &s.identity, std::slice::from_ref(&held), film, &made_by)?;
             last = Instant::now();
         }
         Ok(())
     })?;
     // A resume that found every sample in its checkpoint added nothing.
-    let build = if stats.samples == 0 { resumed_build.unwrap_or(this_build) } else { build };
-    warn_mixed_builds(&build);
+    let made_by = if stats.samples == 0 { resumed.unwrap_or(this) } else { made_by };
     let mut sidecar = Sidecar::new(s.identity.clone(), film.spp, std::slice::from_ref(&range), film.dropped);
-    sidecar.build_target.clone_from(&build);
+    sidecar.set_provenance(&made_by);
     if writes_state(a) {
         // Staged before the image: see `merge_command`.
         let path = a.out.with_extension("state");
-        out.bytes(&path, &RenderState::encode(&s.identity, std::slice::from_ref(&range), &film, &build)?)?;
+        out.bytes(&path, &RenderState::encode(&s.identity, std::slice::from_ref(&range), &film, &made_by)?)?;
         sidecar.state = Some(file_name(&path));
     }
     Ok((film.image(), sidecar, stats))
 }
 
-/// Loads a checkpoint's film, and the builds that rendered it, after
+/// Loads a checkpoint's film, and who rendered it, after
 /// checking it belongs to this render and holds the first samples of
 /// `range`.
-fn resume(path: &Path, identity: &Identity, range: &Range<u32>) -> Result<(Film, String)> {
+fn resume(path: &Path, identity: &Identity, range: &Range<u32>) -> Result<(Film, Provenance)> {
     let state = RenderState::load(path)?;
     let name = path.display().to_string();
     identity.ensure_same("this render", &state.identity, &name)?;
@@ -590,7 +606,7 @@ fn resume(path: &Path, identity: &Identity, range: &Range<u32>) -> Result<(Film,
         "{name} holds samples {:?}, which are not the first samples of this render's {range:?}",
         state.sample_ranges
     );
-    Ok((state.film, state.build_target))
+    Ok((state.film, state.provenance))
 }
 
 /// --passes: K independent renders, their mean and per-pixel variance.
@@ -663,14 +679,13 @@ fn merge_command(out: &Path, parts: &[PathBuf]) -> Result<()> {
     // if the process dies in between, a new state beside an old image is
     // merged correctly where the reverse would be merged stale.
     let mut outputs = Outputs::default();
-    let build = &merged.build_target;
-    outputs.bytes(&state, &RenderState::encode(id, &merged.sample_ranges, film, build)?)?;
+    outputs.bytes(&state, &RenderState::encode(id, &merged.sample_ranges, film, &merged.provenance)?)?;
     outputs.exr(out, id.width, id.height, &film.image())?;
     let mut meta = Sidecar::new(id.clone(), film.spp, &merged.sample_ranges, film.dropped);
     meta.state = Some(file_name(&state));
-    // The parts' builds, not this one's: merging only adds their sums.
-    meta.build_target.clone_from(build);
-    warn_mixed_builds(build);
+    // The parts' commits and builds, not this one's: merging only adds
+    // their sums.
+    meta.set_provenance(&merged.provenance);
     outputs.json(&sidecar, &meta)?;
     outputs.commit()?;
     eprintln!("merged {} parts: {} spp (samples {:?})", parts.len(), film.spp, merged.sample_ranges);
@@ -682,18 +697,6 @@ fn merge_command(out: &Path, parts: &[PathBuf]) -> Result<()> {
 /// moved (from cluster scratch space, say) without breaking it.
 fn file_name(path: &Path) -> String {
     path.file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_default()
-}
-
-/// Sums of two builds (`RenderState::build_target`), or of a build and a
-/// file that recorded none, make an unbiased image but not (knowingly) the
-/// bit-identical one either build renders.
-fn warn_mixed_builds(builds: &str) {
-    if builds.contains("; ") {
-        eprintln!(
-            "warning: these sums were rendered by prism builds for different targets, or not recorded ({builds}): \
-             the image is unbiased, but not bit-identical to a render by any one of them (docs/cluster.md)"
-        );
-    }
 }
 
 /// `what`: "samples", or what else was dropped.

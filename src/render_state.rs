@@ -6,7 +6,7 @@
 //! to one uninterrupted run (docs/cluster.md).
 //!
 //! File format, version 2 (little-endian; version 1, read too, is the same
-//! without the header's build target):
+//! without the header's provenance):
 //!
 //! | bytes          | content                                               |
 //! |----------------|-------------------------------------------------------|
@@ -14,7 +14,7 @@
 //! | 4              | format version (u32)                                  |
 //! | 4              | header length n (u32)                                 |
 //! | n              | header: JSON `Header` (identity, sample ranges,       |
-//! |                | dropped samples, build target)                        |
+//! |                | dropped samples, provenance: commit, build target)    |
 //! | 48 x w x h     | the film's sums, row-major, r g b as i128             |
 //! | 8              | FNV-1a 64 of everything before (u64)                  |
 //!
@@ -29,7 +29,7 @@ use std::path::Path;
 
 const MAGIC: &[u8; 8] = b"PRISMST\0";
 const VERSION: u32 = 2;
-/// The oldest version read: 1, whose header has no `build_target`. (A
+/// The oldest version read: 1, whose header has no provenance. (A
 /// prism that reads version 1 only refuses version 2 by its number.)
 const OLDEST_VERSION: u32 = 1;
 
@@ -78,10 +78,12 @@ struct Header {
     /// Sample indices held, as sorted disjoint [start, end) ranges.
     sample_ranges: Vec<[u32; 2]>,
     dropped: DroppedSamples,
-    /// `crate::build_target` of the prism(s) that rendered the sums
-    /// (`combined_build`; absent in version 1).
+    /// `Provenance::build_target` (absent in version 1).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     build_target: Option<String>,
+    /// `Provenance::commit` (absent in version 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    commit: Option<String>,
 }
 
 /// A film together with what it holds.
@@ -90,24 +92,49 @@ pub struct RenderState {
     /// Sample indices held, sorted and disjoint; their total is `film.spp`.
     pub sample_ranges: Vec<Range<u32>>,
     pub film: Film,
-    /// The build(s) that rendered the sums, as `crate::build_target` names
-    /// them, several joined by "; " (`combined_build`; `UNRECORDED_BUILD`
-    /// for a version 1 file). Images are bit-identical within one build
-    /// target only (FMA rounds differently), so sums of two builds make an
-    /// unbiased image that neither renders.
+    pub provenance: Provenance,
+}
+
+/// Which prism rendered a state's sums: the commit and the build target
+/// (`crate::build_target`), each a list joined by "; " once sums of
+/// several are added (`combined`), "not recorded" for a version 1 file.
+/// Images are bit-identical within one commit and build target only (FMA
+/// rounds differently; the renderer may change between commits), so sums
+/// of two make an unbiased image that neither may render.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Provenance {
+    pub commit: String,
     pub build_target: String,
 }
 
-/// What a state's builds are called where a version 1 file recorded none.
-pub const UNRECORDED_BUILD: &str = "not recorded";
+/// A version 1 file's provenance, either half.
+pub const UNRECORDED: &str = "not recorded";
 
-/// The builds of sums added together, each named once, in order ("; "
-/// between them).
-pub fn combined_build(ours: &str, theirs: &str) -> String {
-    let mut builds: Vec<&str> = ours.split("; ").chain(theirs.split("; ")).collect();
-    builds.sort_unstable();
-    builds.dedup();
-    builds.join("; ")
+impl Provenance {
+    /// This binary's.
+    pub fn this() -> Self {
+        Provenance { commit: env!("PRISM_COMMIT").to_string(), build_target: crate::build_target() }
+    }
+
+    /// Of the sums of both: each commit and build named once, in order.
+    pub fn combined(&self, other: &Provenance) -> Provenance {
+        let join = |a: &str, b: &str| {
+            let mut names: Vec<&str> = a.split("; ").chain(b.split("; ")).collect();
+            names.sort_unstable();
+            names.dedup();
+            names.join("; ")
+        };
+        Provenance {
+            commit: join(&self.commit, &other.commit),
+            build_target: join(&self.build_target, &other.build_target),
+        }
+    }
+
+    /// Whether more than one commit or build (or an unrecorded one) made
+    /// the sums.
+    pub fn is_mixed(&self) -> bool {
+        self.commit.contains("; ") || self.build_target.contains("; ")
+    }
 }
 
 impl RenderState {
@@ -132,7 +159,7 @@ impl RenderState {
         for part in parts {
             let (name, part) = part?;
             merged.identity.ensure_same(&first_name, &part.identity, &name)?;
-            merged.build_target = combined_build(&merged.build_target, &part.build_target);
+            merged.provenance = merged.provenance.combined(&part.provenance);
             owners.extend(part.sample_ranges.iter().map(|r| (r.clone(), name.clone())));
             merged.film.add(&part.film).with_context(|| format!("adding {name}"))?;
         }
@@ -156,24 +183,25 @@ impl RenderState {
         identity: &Identity,
         sample_ranges: &[Range<u32>],
         film: &Film,
-        build_target: &str,
+        provenance: &Provenance,
     ) -> Result<()> {
-        write_bytes(path, &Self::encode(identity, sample_ranges, film, build_target)?)
+        write_bytes(path, &Self::encode(identity, sample_ranges, film, provenance)?)
     }
 
     /// A state file's bytes (the layout above), of sums rendered by
-    /// `build_target` (`combined_build`).
+    /// `provenance`.
     pub fn encode(
         identity: &Identity,
         sample_ranges: &[Range<u32>],
         film: &Film,
-        build_target: &str,
+        provenance: &Provenance,
     ) -> Result<Vec<u8>> {
         let header = Header {
             identity: identity.clone(),
             sample_ranges: sample_ranges.iter().map(|r| [r.start, r.end]).collect(),
             dropped: film.dropped,
-            build_target: Some(build_target.to_string()),
+            build_target: Some(provenance.build_target.clone()),
+            commit: Some(provenance.commit.clone()),
         };
         Self::encode_version(VERSION, &header, film)
     }
@@ -253,8 +281,9 @@ impl RenderState {
             "sums without samples (sample_ranges empty)"
         );
         film.dropped = header.dropped;
-        let build_target = header.build_target.unwrap_or_else(|| UNRECORDED_BUILD.to_string());
-        Ok(RenderState { identity: header.identity, sample_ranges: ranges, film, build_target })
+        let recorded = |field: Option<String>| field.unwrap_or_else(|| UNRECORDED.to_string());
+        let provenance = Provenance { commit: recorded(header.commit), build_target: recorded(header.build_target) };
+        Ok(RenderState { identity: header.identity, sample_ranges: ranges, film, provenance })
     }
 }
 
@@ -298,7 +327,11 @@ mod tests {
         let mut film = Film::new(2, 1);
         film.sums = vec![[1, -2, i128::MAX / 4], [3, 4, 5]];
         film.spp = range.len() as u64;
-        RenderState { identity, sample_ranges: vec![range], film, build_target: "x86_64 +avx2 +fma".into() }
+        RenderState { identity, sample_ranges: vec![range], film, provenance: provenance("abc", "x86_64 +avx2 +fma") }
+    }
+
+    fn provenance(commit: &str, build_target: &str) -> Provenance {
+        Provenance { commit: commit.into(), build_target: build_target.into() }
     }
 
     #[test]
@@ -307,7 +340,7 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("prism-state-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("a.state");
-        RenderState::save(&path, &s.identity, &s.sample_ranges, &s.film, "x86_64").unwrap();
+        RenderState::save(&path, &s.identity, &s.sample_ranges, &s.film, &provenance("abc", "x86_64")).unwrap();
         let bytes = std::fs::read(&path).unwrap();
         let back = RenderState::parse(&bytes).unwrap();
         assert_eq!(
@@ -327,7 +360,8 @@ mod tests {
         let mut empty = state(1, 0..1);
         empty.identity.width = 0;
         empty.film = Film::new(0, 1);
-        RenderState::save(&path, &empty.identity, &empty.sample_ranges, &empty.film, "x86_64").unwrap();
+        RenderState::save(&path, &empty.identity, &empty.sample_ranges, &empty.film, &provenance("abc", "x86_64"))
+            .unwrap();
         let e = RenderState::load(&path).err().map(|e| format!("{e:#}")).unwrap_or_default();
         assert!(e.contains("film size: width and height must be at least 1"), "{e}");
         std::fs::remove_dir_all(&dir).unwrap();
@@ -360,32 +394,34 @@ mod tests {
         assert_eq!((m.film.dropped.nan, m.film.dropped.total()), (u64::MAX, u64::MAX));
     }
 
-    /// From a review (session 39): a merge records every build that
-    /// rendered its parts (with and without AVX2 and FMA, say), each once,
-    /// however often it merges, and a part of a version 1 file (which
-    /// records none) as "not recorded". The builds survive the file, and a
+    /// From a review (session 39): a merge records every commit and build
+    /// that rendered its parts (with and without AVX2 and FMA, say), each
+    /// once, however often it merges, and a version 1 file's (which
+    /// records neither) as "not recorded". They survive the file, and a
     /// version 1 file is still read.
     #[test]
     fn a_merge_records_the_builds_of_its_parts() {
-        let other_build = |range| RenderState { build_target: "x86_64".into(), ..state(1, range) };
-        let m = merge(vec![("a".into(), state(1, 0..16)), ("b".into(), other_build(16..32))]).unwrap();
-        assert_eq!(m.build_target, "x86_64; x86_64 +avx2 +fma");
-        let again = merge(vec![("m".into(), m), ("d".into(), other_build(48..64))]).unwrap();
-        assert_eq!(again.build_target, "x86_64; x86_64 +avx2 +fma");
-        let bytes = RenderState::encode(&again.identity, &again.sample_ranges, &again.film, "x86_64").unwrap();
-        assert_eq!(RenderState::parse(&bytes).unwrap().build_target, "x86_64");
-        let header = |build| Header {
+        let other = |range| RenderState { provenance: provenance("def", "x86_64"), ..state(1, range) };
+        let m = merge(vec![("a".into(), state(1, 0..16)), ("b".into(), other(16..32))]).unwrap();
+        assert_eq!(m.provenance, provenance("abc; def", "x86_64; x86_64 +avx2 +fma"));
+        assert!(m.provenance.is_mixed() && !state(1, 0..1).provenance.is_mixed());
+        let again = merge(vec![("m".into(), m), ("d".into(), other(48..64))]).unwrap();
+        assert_eq!(again.provenance, provenance("abc; def", "x86_64; x86_64 +avx2 +fma"));
+        let bytes = RenderState::encode(&again.identity, &again.sample_ranges, &again.film, &again.provenance);
+        assert_eq!(RenderState::parse(&bytes.unwrap()).unwrap().provenance, again.provenance);
+        let header = |recorded: Option<&str>| Header {
             identity: again.identity.clone(),
             sample_ranges: vec![[64, 80]],
             dropped: DroppedSamples::default(),
-            build_target: build,
+            build_target: recorded.map(str::to_string),
+            commit: recorded.map(str::to_string),
         };
         let v1 = RenderState::encode_version(1, &header(None), &again.film).unwrap();
         let v1 = RenderState::parse(&v1).unwrap();
-        assert_eq!(v1.build_target, UNRECORDED_BUILD, "a version 1 header");
-        let mixed = merge(vec![("v1".into(), v1), ("d".into(), other_build(80..96))]).unwrap();
-        assert_eq!(mixed.build_target, "not recorded; x86_64");
-        let v3 = RenderState::encode_version(3, &header(Some("x86_64".into())), &again.film).unwrap();
+        assert_eq!(v1.provenance, provenance(UNRECORDED, UNRECORDED), "a version 1 header");
+        let mixed = merge(vec![("v1".into(), v1), ("d".into(), other(80..96))]).unwrap();
+        assert_eq!(mixed.provenance, provenance("def; not recorded", "not recorded; x86_64"));
+        let v3 = RenderState::encode_version(3, &header(Some("x86_64")), &again.film).unwrap();
         let e = RenderState::parse(&v3).err().map(|e| e.to_string()).unwrap_or_default();
         assert_eq!(e, "format version 3; this prism reads versions 1 to 2");
     }
@@ -400,12 +436,13 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("a.state");
         let s = state(1, 0..0);
-        RenderState::save(&path, &s.identity, &s.sample_ranges, &s.film, "x86_64").unwrap();
+        RenderState::save(&path, &s.identity, &s.sample_ranges, &s.film, &provenance("abc", "x86_64")).unwrap();
         let e = RenderState::load(&path).err().map(|e| format!("{e:#}")).unwrap_or_default();
         assert!(e.contains("sums without samples"), "{e}");
         let mut zero = state(1, 0..0);
         zero.film = Film::new(2, 1);
-        RenderState::save(&path, &zero.identity, &zero.sample_ranges, &zero.film, "x86_64").unwrap();
+        RenderState::save(&path, &zero.identity, &zero.sample_ranges, &zero.film, &provenance("abc", "x86_64"))
+            .unwrap();
         assert!(RenderState::load(&path).is_ok(), "a state of no samples and zero sums");
         for odd in [Path::new("/dev/zero"), dir.as_path()] {
             let e = RenderState::load(odd).err().map(|e| format!("{e:#}")).unwrap_or_default();

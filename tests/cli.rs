@@ -309,43 +309,51 @@ fn outputs_never_replace_the_scene_or_each_other() {
     let _ = std::fs::remove_dir_all(&d);
 }
 
-/// Sums rendered by two builds (another target, say a node without AVX2)
-/// still add up, into an unbiased image that neither build renders: merge
-/// and resume say so, and the sidecar lists both builds (it named only the
-/// merging binary's; found by a review, session 39).
+/// Sums rendered by two builds (another target, say a node without AVX2,
+/// or another commit) still add up, into an unbiased image that neither
+/// may render: merge and resume say so, and the sidecar lists both (it
+/// named only the merging binary's; found by a review, session 39).
 #[test]
 fn sums_of_two_builds_are_reported() {
-    use prism::render_state::RenderState;
+    use prism::render_state::{Provenance, RenderState};
     let d = temp_dir("builds");
     let scene = write(&d, "s.json", scenes::TINY_SCENE);
     let path = |name: &str| d.join(name).display().to_string();
     let run = |args: &[&str]| render_ok(&scene, args);
+    let other = Provenance { commit: "0ther".into(), build_target: "elsewhere".into() };
     let elsewhere = |from: &str, to: &str| {
         let st = RenderState::load(&d.join(from)).unwrap();
-        let bytes = RenderState::encode(&st.identity, &st.sample_ranges, &st.film, "elsewhere").unwrap();
+        let bytes = RenderState::encode(&st.identity, &st.sample_ranges, &st.film, &other).unwrap();
         std::fs::write(d.join(to), bytes).unwrap();
     };
-    let this = prism::build_target();
-    let both = format!("elsewhere; {this}");
-    let sidecar_build = |name: &str| read_json(&d.join(name))["build_target"].as_str().unwrap().to_string();
+    let this = Provenance::this();
+    let both = this.combined(&other);
+    assert!(both.commit.contains("0ther; ") || both.commit.contains("; 0ther"), "{both:?}");
+    let made_by = |name: &str| {
+        let v = read_json(&d.join(name));
+        Provenance {
+            commit: v["commit"].as_str().unwrap().into(),
+            build_target: v["build_target"].as_str().unwrap().into(),
+        }
+    };
     run(&["--sample-range", "0..1", "--out", &path("p0.exr")]);
     run(&["--sample-range", "1..2", "--out", &path("p1.exr")]);
     let o = prism(&["merge", &path("same.exr"), &path("p0.exr"), &path("p1.exr")]);
-    assert!(o.status.success() && !stderr(&o).contains("different targets"), "{}", stderr(&o));
-    assert_eq!(sidecar_build("same.json"), this);
+    assert!(o.status.success() && !stderr(&o).contains("different prism"), "{}", stderr(&o));
+    assert_eq!(made_by("same.json"), this);
     elsewhere("p1.state", "p1.state");
     let o = prism(&["merge", &path("mixed.exr"), &path("p0.exr"), &path("p1.exr")]);
-    assert!(o.status.success() && stderr(&o).contains("different targets"), "{}", stderr(&o));
-    assert_eq!(sidecar_build("mixed.json"), both);
+    assert!(o.status.success() && stderr(&o).contains("different prism commits or builds"), "{}", stderr(&o));
+    assert_eq!(made_by("mixed.json"), both);
     elsewhere("p0.state", "r.ckpt");
     let e = run(&["--spp", "2", "--resume", &path("r.ckpt"), "--out", &path("r.exr")]);
-    assert!(e.contains(&format!("different targets, or not recorded ({both})")), "{e}");
-    assert_eq!(sidecar_build("r.json"), both);
+    assert!(e.contains(&format!("(commit {}; build {})", both.commit, both.build_target)), "{e}");
+    assert_eq!(made_by("r.json"), both);
     // A resume that renders nothing adds no build of its own.
     elsewhere("p0.state", "n.ckpt");
     let e = run(&["--sample-range", "0..1", "--resume", &path("n.ckpt"), "--out", &path("n.exr")]);
-    assert!(!e.contains("different targets"), "{e}");
-    assert_eq!(sidecar_build("n.json"), "elsewhere");
+    assert!(!e.contains("different prism"), "{e}");
+    assert_eq!(made_by("n.json").build_target, "elsewhere");
     let _ = std::fs::remove_dir_all(&d);
 }
 
