@@ -239,8 +239,8 @@ impl Sidecar {
         if p.is_mixed() {
             eprintln!(
                 "warning: these sums were rendered by different prism commits or builds, or ones not recorded \
-                 (commit {}; build {}): the image is unbiased, but not bit-identical to a render by any one of \
-                 them (docs/cluster.md)",
+                 (commits [{}], builds [{}]): the image is unbiased, but may not be bit-identical to a render by \
+                 any one of them (docs/cluster.md)",
                 p.commit, p.build_target
             );
         }

@@ -81,7 +81,8 @@ struct Header {
     /// `Provenance::build_target` (absent in version 1).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     build_target: Option<String>,
-    /// `Provenance::commit` (absent in version 1).
+    /// `Provenance::commit` (absent in version 1, and in the version 2
+    /// files of session 39's binaries before def4b1e).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     commit: Option<String>,
 }

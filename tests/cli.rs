@@ -347,13 +347,14 @@ fn sums_of_two_builds_are_reported() {
     assert_eq!(made_by("mixed.json"), both);
     elsewhere("p0.state", "r.ckpt");
     let e = run(&["--spp", "2", "--resume", &path("r.ckpt"), "--out", &path("r.exr")]);
-    assert!(e.contains(&format!("(commit {}; build {})", both.commit, both.build_target)), "{e}");
+    assert!(e.contains(&format!("(commits [{}], builds [{}])", both.commit, both.build_target)), "{e}");
     assert_eq!(made_by("r.json"), both);
+    assert_eq!(RenderState::load(&d.join("r.state")).unwrap().provenance, both, "the resumed render's state");
     // A resume that renders nothing adds no build of its own.
     elsewhere("p0.state", "n.ckpt");
     let e = run(&["--sample-range", "0..1", "--resume", &path("n.ckpt"), "--out", &path("n.exr")]);
     assert!(!e.contains("different prism"), "{e}");
-    assert_eq!(made_by("n.json").build_target, "elsewhere");
+    assert_eq!(made_by("n.json"), other);
     let _ = std::fs::remove_dir_all(&d);
 }
 
