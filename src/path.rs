@@ -625,12 +625,12 @@ pub fn specular_chains_to_point_lights(scene: &Scene) -> Vec<String> {
     })
 }
 
-/// One message per point light, `message(light, materials)`, if the scene
-/// has smooth specular materials (listed, comma-separated).
+/// One message per point light, `message(light, materials)`, if some
+/// triangle of the scene has a smooth specular material (listed,
+/// comma-separated).
 pub fn point_lights_with_specular(scene: &Scene, message: impl Fn(&str, &str) -> String) -> Vec<String> {
     let specular: Vec<&str> = scene
-        .materials
-        .iter()
+        .materials_in_use()
         .filter(|m| m.bsdf.flags().is_specular() && !m.bsdf.flags().is_non_specular())
         .map(|m| m.name.as_str())
         .collect();

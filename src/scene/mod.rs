@@ -494,6 +494,18 @@ impl Scene {
         })
     }
 
+    /// The materials some triangle of the scene has, each once, in the
+    /// order of `materials`; a material that only the scene file defines
+    /// is not among them.
+    pub fn materials_in_use(&self) -> impl Iterator<Item = &Material> + '_ {
+        let ends = self.meshes.iter().skip(1).map(|m| m.start).chain([self.triangle_count() as u32]);
+        let mut used = vec![false; self.materials.len()];
+        for (m, end) in self.meshes.iter().zip(ends) {
+            used[m.material as usize] |= end > m.start;
+        }
+        self.materials.iter().zip(used).filter_map(|(m, used)| used.then_some(m))
+    }
+
     /// The triangles as built, in input order (scene exporters): vertices
     /// in winding order, per-vertex shading normals, material, area light.
     /// Makes the input -> BVH slot map (4 bytes per triangle) for the
