@@ -624,22 +624,45 @@ fn bad_numbers_degenerate_geometry() {
 
 /// An emitter in another surface's plane is named (`Scene::
 /// emitters_on_surfaces`): the stage's lamp (y = 2.5, x and z in
-/// [-0.5, 0.5]) under a ceiling in its plane; controls: the ceiling 0.01
-/// above it, and a panel in its plane that only shares its edge x = 0.5.
+/// [-0.5, 0.5], facing down) under a ceiling in its plane, and under a
+/// second lamp laid on it facing up (the two-sided lamp an audit built
+/// so, whose upper side `path` lost); controls: each 0.01 above it, and
+/// each as a panel in its plane that only shares its edge x = 0.5.
 #[test]
 fn an_emitter_in_a_surface_is_named() {
-    let warned = |corners: &str| {
+    let warning = |corners: &str, emission: &str| {
         let objects = format!(
             r#",
-    {{"name": "ceiling", "shape": {{"type": "quad", "corners": {corners}}}, "material": "white"}}"#
+    {{"name": "ceiling", "shape": {{"type": "quad", "corners": {corners}}}, "material": "white"{emission}}}"#
         );
         let text = stage("", &objects, "", None);
-        let s = parse_scene(&text, "coplanar", Path::new(".")).unwrap().build();
-        s.emitters_on_surfaces().is_some_and(|w| w.contains("\"lamp (triangle") && w.contains("\"white\""))
+        parse_scene(&text, "coplanar", Path::new(".")).unwrap().build().emitters_on_surfaces()
     };
-    assert!(warned("[[-2, 2.5, -2], [-2, 2.5, 2], [2, 2.5, 2], [2, 2.5, -2]]"), "a lamp in the ceiling's plane");
-    assert!(!warned("[[-2, 2.51, -2], [-2, 2.51, 2], [2, 2.51, 2], [2, 2.51, -2]]"), "a ceiling 0.01 above");
-    assert!(!warned("[[0.5, 2.5, -0.5], [0.5, 2.5, 0.5], [2, 2.5, 0.5], [2, 2.5, -0.5]]"), "a panel beside");
+    let on = "[[-2, 2.5, -2], [-2, 2.5, 2], [2, 2.5, 2], [2, 2.5, -2]]";
+    let above = "[[-2, 2.51, -2], [-2, 2.51, 2], [2, 2.51, 2], [2, 2.51, -2]]";
+    let beside = "[[0.5, 2.5, -0.5], [0.5, 2.5, 0.5], [2, 2.5, 0.5], [2, 2.5, -0.5]]";
+    let w = warning(on, "").unwrap_or_default();
+    assert!(w.contains("\"lamp (triangle") && w.contains("a \"white\" surface"), "a lamp in the ceiling's plane: {w}");
+    let w = warning(on, r#", "emission": 5"#).unwrap_or_default();
+    assert!(w.contains("\"lamp (triangle") && w.contains("the emitter \"ceiling (triangle"), "a lamp on a lamp: {w}");
+    for emission in ["", r#", "emission": 5"#] {
+        assert_eq!(warning(above, emission), None, "a ceiling 0.01 above ({emission})");
+        assert_eq!(warning(beside, emission), None, "a panel beside ({emission})");
+    }
+    // Triangles that only share an edge, whatever its direction: the
+    // emitting walls of the mirror room, level and turned (their edges'
+    // ends rounded apart on the edge's normal, and two triangles of a wall
+    // were taken to overlap, before the spans were measured from the edge).
+    let room = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/white-room-mirror.json"));
+    let room = room.unwrap();
+    let turned = room.replace(
+        r#""inward": true"#,
+        r#""inward": true}, "transform": {"rotate": {"axis": [1, 0.3, 0.2], "degrees": 37}"#,
+    );
+    for (case, text) in [("level", &room), ("turned", &turned)] {
+        let s = parse_scene(text, case, Path::new(".")).unwrap().build();
+        assert_eq!(s.emitters_on_surfaces(), None, "the {case} mirror room");
+    }
 }
 
 #[test]
