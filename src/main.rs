@@ -503,8 +503,7 @@ fn check_new_outputs(inputs: &[(&str, &Path)], outputs: &[(&str, &Path)]) -> Res
 
 fn render_command(a: RenderArgs) -> Result<()> {
     let s = set_up(&a)?;
-    let scene_warnings = s.scene.too_small_triangles().into_iter().chain(s.scene.emitters_on_surfaces());
-    for w in scene_warnings.chain(s.integrator.unsamplable(&s.scene)) {
+    for w in s.scene.geometry_warnings().into_iter().chain(s.integrator.unsamplable(&s.scene)) {
         eprintln!("warning: {w}");
     }
     // Every file this render writes, moved into place together at the end.

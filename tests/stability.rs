@@ -665,6 +665,36 @@ fn an_emitter_in_a_surface_is_named() {
     }
 }
 
+/// A point light on a surface is named (`Scene::point_lights_on_surfaces`):
+/// on a quad turned about an oblique axis, where rounding puts it a hair
+/// off the plane, `path` read 0.21 against `light` and `bdpt` 0.33 (an
+/// audit: the light's rays met the quad at t ~ 1e-8 and scattered from a
+/// point no camera path reaches), and on the stage's level floor, exactly
+/// in its plane. Controls: 1e-4 off the turned quad (light tracing's
+/// answer again, only noisier for `path`), and in the floor's plane but
+/// beyond its edge.
+#[test]
+fn a_point_light_on_a_surface_is_named() {
+    let tilted = r#",
+    {"name": "tilt", "shape": {"type": "quad", "corners": [[-0.5, -0.5, 0], [0.5, -0.5, 0], [0.5, 0.5, 0], [-0.5, 0.5, 0]]}, "material": "white",
+     "transform": {"rotate": {"axis": [1, 0.3, 0.2], "degrees": 37}, "translate": [0.1, -0.2, 0.5]}}"#;
+    let warning = |position: &str| {
+        let light = format!(r#"{{"type": "point", "name": "bulb", "position": {position}, "intensity": 2}}"#);
+        let text = stage("", tilted, &light, None);
+        parse_scene(&text, "point on a surface", Path::new(".")).unwrap().build().point_lights_on_surfaces()
+    };
+    // The quad's point (0.2, 0.1, 0), turned and moved, and 1e-4 along its normal.
+    let on_tilted = "[0.2893899977207184, -0.0851951465010643, 0.5308427214622498]";
+    let off_tilted = "[0.28941054589252746, -0.08525069130420083, 0.5309232978079091]";
+    for (case, at) in [("on the turned quad", on_tilted), ("on the floor", "[0.3, 0, 0.4]")] {
+        let w = warning(at).unwrap_or_default();
+        assert!(w.contains("\"bulb\"") && w.contains("\"white\" surface"), "{case}: {w}");
+    }
+    for (case, at) in [("1e-4 off the turned quad", off_tilted), ("beyond the floor's edge", "[3, 0, 0.4]")] {
+        assert_eq!(warning(at), None, "{case}");
+    }
+}
+
 #[test]
 fn bad_numbers_grazing_and_materials() {
     // Grazing: the camera exactly in the floor's plane, a quad seen edge-on,

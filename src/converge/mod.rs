@@ -536,7 +536,7 @@ pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
         .collect::<Result<Vec<_>>>()?;
     let scene_name = cfg.scene.display().to_string();
     // What no estimator can get right: a note on every chart of the run.
-    let mut notes: Vec<String> = scene.too_small_triangles().into_iter().chain(scene.emitters_on_surfaces()).collect();
+    let mut notes: Vec<String> = scene.geometry_warnings();
     for n in &notes {
         eprintln!("warning: {n}");
     }

@@ -481,6 +481,15 @@ impl Scene {
         self.accel.len()
     }
 
+    /// The warnings `render` and `converge` print about the scene itself,
+    /// whatever the estimator: geometry that rounding decides.
+    pub fn geometry_warnings(&self) -> Vec<String> {
+        [self.too_small_triangles(), self.emitters_on_surfaces(), self.point_lights_on_surfaces()]
+            .into_iter()
+            .flatten()
+            .collect()
+    }
+
     /// A warning if triangles are too small for f32 (`too_small_for_f32`):
     /// a scene modelled at 1e-11 units read 12 % bright (its emitter's
     /// area), and at 1e-12 black (every triangle left the BVH).
