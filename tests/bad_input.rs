@@ -220,6 +220,15 @@ const CASES: &[Case] = &[
         words: &["lights[0].radiance: the spectrum is not finite"],
     },
     Case {
+        // Finite, but every sample that sees it is past what the film records.
+        id: "radiance-past-the-film",
+        edits: &[("\"radiance\": 1.0", "\"radiance\": 1e15")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:5:",
+        words: &["lights[0].radiance: must be at most 2.8147498e14, the largest sample value the film records (max 1e15)"],
+    },
+    Case {
         id: "second-environment",
         edits: &[("{\"type\": \"environment\", \"radiance\": 1.0}", "{\"type\": \"environment\", \"radiance\": 1.0},\n    {\"type\": \"environment\", \"radiance\": 0.5}")],
         args: &[],

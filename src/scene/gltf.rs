@@ -781,6 +781,7 @@ impl<'a> Importer<'a> {
         measured: Option<Spectrum>,
     ) -> Result<Option<(Spectrum, bool)>, LoadError> {
         if let Some(s) = measured {
+            super::check_radiance(&s).map_err(|why| self.fail(label, format!("the emitted radiance {why}")))?;
             return Ok((s.max_value() > 0.0).then_some((s, m.double_sided())));
         }
         let strength = m.emissive_strength().unwrap_or(1.0);
@@ -803,6 +804,7 @@ impl<'a> Importer<'a> {
         }
         let s = spectrum::rgb_illuminant(rgb);
         self.check_emission(label, &s)?;
+        super::check_radiance(&s).map_err(|why| self.fail(label, format!("the emitted radiance {why}")))?;
         Ok(Some((s, m.double_sided())))
     }
 

@@ -834,6 +834,14 @@ impl<'a> Ctx<'a> {
         Ok(s)
     }
 
+    /// An emitted radiance (an object's `emission`, an environment's
+    /// `radiance`), at most `MAX_RADIANCE`.
+    fn radiance(&self, path: &[Seg], spec: &SpectrumSpec) -> Result<Spectrum, LoadError> {
+        let s = self.spectrum(path, spec, Use::Emission)?;
+        super::check_radiance(&s).map_err(|why| self.err(path, why))?;
+        Ok(s)
+    }
+
     fn material(&self, path: &[Seg], spec: &MaterialSpec) -> Result<Bsdf, LoadError> {
         let at = |k: &str| with(path, k);
         Ok(match spec {
@@ -1221,7 +1229,7 @@ fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
         mesh.check_f32_extent().map_err(|e| ctx.err(&at, e))?;
         check_triangle_count(b.triangle_count() + mesh.len()).map_err(|e| ctx.err(&with(&path, "shape"), e))?;
         let emission = match &o.emission {
-            Some(e) => Some((ctx.spectrum(&with(&path, "emission"), e, Use::Emission)?, o.two_sided)),
+            Some(e) => Some((ctx.radiance(&with(&path, "emission"), e)?, o.two_sided)),
             None => None,
         };
         b.mesh(&name, mesh, material, emission);
@@ -1244,7 +1252,7 @@ fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
                         format!("a second environment light (lights[{first}] is one): add their radiances into one");
                     return Err(ctx.err(&path, message));
                 }
-                let le = ctx.spectrum(&with(&path, "radiance"), &e.radiance, Use::Emission)?;
+                let le = ctx.radiance(&with(&path, "radiance"), &e.radiance)?;
                 b.environment(e.name.as_deref().unwrap_or("environment"), le);
             }
         }

@@ -193,6 +193,27 @@ pub fn check_triangle_count(n: usize) -> Result<(), String> {
     }
 }
 
+/// The largest radiance an emitter may give at any wavelength (an area
+/// light, the environment): a camera ray that meets it carries that value
+/// to the film, which refuses sample values past `film::MAX_SAMPLE` (2^48)
+/// as infinite, so the emitter could only be seen as missing samples (an
+/// audit: at 1e20 every estimator's image of a lit room was black, with
+/// 4,000-10,000 samples dropped). Point lights are not capped: what one
+/// brings to a pixel falls with the square of the distance, which the
+/// scene's scale sets.
+pub const MAX_RADIANCE: f32 = crate::film::MAX_SAMPLE;
+
+/// Whether emitted radiance `s` is within `MAX_RADIANCE`.
+pub fn check_radiance(s: &Spectrum) -> Result<(), String> {
+    match s.max_value() > MAX_RADIANCE {
+        true => Err(format!(
+            "must be at most {MAX_RADIANCE:e}, the largest sample value the film records (max {:e})",
+            s.max_value()
+        )),
+        false => Ok(()),
+    }
+}
+
 /// A mesh with its material, its emission (radiance, two-sided) if any, and
 /// its name.
 type MeshEntry = (Mesh, u32, Option<(Spectrum, bool)>, String);
