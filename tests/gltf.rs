@@ -307,6 +307,16 @@ fn unsupported_features_are_named_errors() {
     light["extensions"]["KHR_materials_emissive_strength"]["emissiveStrength"] = json!(3.4e38);
     let e = parse(&v, "cornell-box (emissiveStrength 3.4e38)").err().unwrap();
     assert!(e.contains("materials[3] \"light\": the emitted spectrum is not finite at every wavelength"), "{e}");
+    // Finite, but past the largest sample value the film records; the
+    // measured spectrum of the extras alike (1e15 at its peak).
+    v["materials"][3]["extensions"]["KHR_materials_emissive_strength"]["emissiveStrength"] = json!(1e15);
+    let e = parse(&v, "cornell-box (emissiveStrength 1e15)").err().unwrap();
+    assert!(e.contains("materials[3] \"light\": the emitted radiance must be at most 2.8147498e14"), "{e}");
+    let mut v = read_json(&dir().join("cornell-box.gltf"));
+    let emission = &mut v["materials"][3]["extras"]["prism"]["emission"];
+    emission["values"] = json!([0.0, 8.0, 15.6, 1e15]);
+    let e = parse(&v, "cornell-box (measured emission 1e15)").err().unwrap();
+    assert!(e.contains("materials[3] \"light\": the emitted radiance must be at most 2.8147498e14"), "{e}");
 
     // An accessor's byteOffset near 2^64 does not wrap its end round to
     // the view's start (the indices were read as absent: sequential).
