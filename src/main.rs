@@ -14,7 +14,7 @@ use prism::render::{
     StrategyImages,
 };
 use prism::render_state::{fnv1a, Identity, Provenance, RenderState};
-use prism::scene::{load_scene, Scene};
+use prism::scene::{load_scene, RenderDefaults, Scene};
 use prism::stats::{check_pass_memory, pixel_mean_variance, render_pass_films};
 use serde::Serialize;
 use std::ops::Range;
@@ -72,6 +72,8 @@ struct ReferenceArgs {
     scene: PathBuf,
     #[arg(long, default_value = "path")]
     integrator: String,
+    #[command(flatten)]
+    estimator: EstimatorArgs,
     /// Samples per pixel of each pass.
     #[arg(long)]
     spp: u32,
@@ -92,6 +94,36 @@ struct ReferenceArgs {
     /// Output EXR; the sidecar goes next to it (.json).
     #[arg(long)]
     out: PathBuf,
+}
+
+/// The options of the estimator, as `render` and `reference` take them.
+#[derive(clap::Args)]
+struct EstimatorArgs {
+    /// Maximum scattering events (roulette ends most paths long before);
+    /// default: the scene's, else 1024.
+    #[arg(long)]
+    max_depth: Option<u32>,
+    /// MIS heuristic of bdpt: power (the default), balance or uniform.
+    #[arg(long)]
+    mis: Option<MisHeuristic>,
+}
+
+impl EstimatorArgs {
+    /// Estimator `name` with these options over the scene's `defaults`,
+    /// and the options it renders with (the heuristic the one it reads,
+    /// which sidecars and states record). A `--mis` for an estimator that
+    /// reads none is a warning, not an error: a script may pass one --mis
+    /// to every integrator, and such parts still merge.
+    fn create(&self, name: &str, defaults: &RenderDefaults) -> Result<(Box<dyn Integrator>, IntegratorOptions)> {
+        let max_depth = self.max_depth.or(defaults.max_depth).unwrap_or(IntegratorOptions::default().max_depth);
+        let mis = self.mis.unwrap_or_default();
+        let integrator =
+            integrators::create(name, &IntegratorOptions { max_depth, mis }).map_err(anyhow::Error::msg)?;
+        if self.mis.is_some() && !integrators::reads_mis(name) {
+            eprintln!("warning: --mis sets bdpt's heuristic; {name} reads none and ignores it");
+        }
+        Ok((integrator, IntegratorOptions { max_depth, mis: integrators::effective_mis(name, mis) }))
+    }
 }
 
 #[derive(clap::Args)]
@@ -122,15 +154,11 @@ struct RenderArgs {
     /// Worker threads (0 = all cores).
     #[arg(long, default_value_t = 0)]
     threads: usize,
-    /// Maximum scattering events (roulette ends most paths long before).
-    #[arg(long)]
-    max_depth: Option<u32>,
+    #[command(flatten)]
+    estimator: EstimatorArgs,
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
-    /// MIS heuristic of bdpt: power (the default), balance or uniform.
-    #[arg(long)]
-    mis: Option<MisHeuristic>,
     /// Also write one EXR per BDPT strategy (s, t), weighted and unweighted,
     /// into this directory (created if missing; bdpt only), listed in the
     /// sidecar; an earlier render's other strategy images there are removed.
@@ -281,9 +309,7 @@ fn reference_command(a: ReferenceArgs) -> Result<()> {
     check_threads(a.threads)?;
     let mut builder = load_scene(&a.scene)?;
     builder.set_resolution(a.width, a.height).map_err(|e| anyhow!("--width, --height: {e}"))?;
-    let max_depth = builder.defaults.max_depth.unwrap_or(IntegratorOptions::default().max_depth);
-    let options = IntegratorOptions { max_depth, ..Default::default() };
-    let integrator = integrators::create(&a.integrator, &options).map_err(anyhow::Error::msg)?;
+    let (integrator, IntegratorOptions { max_depth, .. }) = a.estimator.create(&a.integrator, &builder.defaults)?;
     ensure_exr("--out", &a.out)?;
     check_no_stale_state(&a.out, "")?;
     check_new_outputs(
@@ -371,7 +397,7 @@ struct Setup {
 fn set_up(a: &RenderArgs) -> Result<Setup> {
     let mut builder = load_scene(&a.scene)?;
     let defaults = builder.defaults.clone();
-    let name = a.integrator.clone().or(defaults.integrator).unwrap_or_else(|| "path".to_string());
+    let name = a.integrator.clone().or(defaults.integrator.clone()).unwrap_or_else(|| "path".to_string());
     let spp = a.spp.or(defaults.spp).unwrap_or(16);
     at_least("--spp", spp, 1, "")?;
     if let Some(k) = a.passes {
@@ -386,14 +412,7 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
     }
     check_threads(a.threads)?;
     let seed = a.seed.or(defaults.seed).unwrap_or(0);
-    let max_depth = a.max_depth.or(defaults.max_depth).unwrap_or(IntegratorOptions::default().max_depth);
-    let mis = a.mis.unwrap_or_default();
-    let integrator = integrators::create(&name, &IntegratorOptions { max_depth, mis }).map_err(anyhow::Error::msg)?;
-    if a.mis.is_some() && !integrators::reads_mis(&name) {
-        // Not an error: a script may pass one --mis to every integrator, and
-        // such parts still merge (the sidecar records the default).
-        eprintln!("warning: --mis sets bdpt's heuristic; {name} reads none and ignores it");
-    }
+    let (integrator, IntegratorOptions { max_depth, mis }) = a.estimator.create(&name, &defaults)?;
     if a.strategies.is_some() && name != "bdpt" {
         bail!("--strategies needs --integrator bdpt (got {name})");
     }
@@ -441,7 +460,6 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
     }
     let scene_bytes = std::fs::read(&a.scene).with_context(|| format!("cannot read {}", a.scene.display()))?;
     let scene = builder.build();
-    let mis = integrators::effective_mis(&name, a.mis.unwrap_or_default());
     let identity = Identity {
         scene: a.scene.display().to_string(),
         scene_hash: format!("{:016x}", fnv1a(&scene_bytes)),

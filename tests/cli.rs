@@ -626,3 +626,43 @@ fn small_subcommands_refuse_before_writing() {
     assert!(!d.join("t.bin").exists());
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// `prism reference` takes `--max-depth` and `--mis` as `render` does (it
+/// took the depth from the scene alone, an audit found): the white room
+/// (Le 0.5, albedo 0.8) cut at 2 scattering events reads
+/// 0.5 (1 - 0.8^3) / 0.2 = 1.22, not its unbounded 2.5, and the sidecar
+/// says so; a `--mis` for `path`, which reads none, is a warning.
+#[test]
+fn references_take_the_estimators_options() {
+    let d = temp_dir("reference-depth");
+    let out = d.join("r.exr");
+    let o = prism(&[
+        "reference",
+        "scenes/white-room.json",
+        "--spp",
+        "64",
+        "--passes",
+        "2",
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--threads",
+        "1",
+        "--max-depth",
+        "2",
+        "--mis",
+        "balance",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--mis sets bdpt's heuristic; path reads none"), "{}", stderr(&o));
+    assert_eq!(read_json(&out.with_extension("json"))["max_depth"], 2);
+    let (_, _, pixels) = prism::film::read_exr(&out).unwrap();
+    // Luminance (linear sRGB's Y row): the room's spectra are constant.
+    let y = |p: &[f32; 3]| 0.2126 * p[0] as f64 + 0.7152 * p[1] as f64 + 0.0722 * p[2] as f64;
+    let mean = pixels.iter().map(y).sum::<f64>() / pixels.len() as f64;
+    assert!((mean - 1.22).abs() < 0.02, "the white room at depth 2 reads {mean}, not 1.22");
+    let _ = std::fs::remove_dir_all(&d);
+}
