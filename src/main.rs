@@ -309,7 +309,7 @@ fn reference_command(a: ReferenceArgs) -> Result<()> {
     check_threads(a.threads)?;
     let mut builder = load_scene(&a.scene)?;
     builder.set_resolution(a.width, a.height).map_err(|e| anyhow!("--width, --height: {e}"))?;
-    let (integrator, IntegratorOptions { max_depth, .. }) = a.estimator.create(&a.integrator, &builder.defaults)?;
+    let (integrator, options) = a.estimator.create(&a.integrator, &builder.defaults)?;
     ensure_exr("--out", &a.out)?;
     check_no_stale_state(&a.out, "")?;
     check_new_outputs(
@@ -323,7 +323,7 @@ fn reference_command(a: ReferenceArgs) -> Result<()> {
         &name,
         integrator.as_ref(),
         &a.integrator,
-        max_depth,
+        &options,
         a.spp,
         a.passes,
         a.seed,

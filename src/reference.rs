@@ -6,7 +6,7 @@
 //! wall time). Made by `prism reference`; read by tests/agreement.rs.
 
 use crate::film::{read_exr, DroppedSamples, Film, Outputs};
-use crate::integrators::Integrator;
+use crate::integrators::{effective_mis, Integrator, IntegratorOptions};
 use crate::render::RenderOptions;
 use crate::scene::Scene;
 use crate::stats::{luminance, pixel_mean_variance, reference_noise, render_pass_films, BlockStats, ColourStats};
@@ -25,6 +25,11 @@ pub struct ReferenceMeta {
     /// `prism converge` the run's, so the sidecar cannot tell which.
     #[serde(default)]
     pub max_depth: Option<u32>,
+    /// BDPT's MIS heuristic (`MisHeuristic::name`; the default for an
+    /// estimator that reads none); None in references made before it was
+    /// recorded, all of which used the default.
+    #[serde(default)]
+    pub mis: Option<String>,
     pub spp: u32,
     pub passes: u32,
     pub seed: u64,
@@ -86,14 +91,14 @@ impl ReferenceMeta {
 }
 
 /// Renders `passes` passes (seeds seed, seed+1, ...) and returns the mean
-/// image with its sidecar (`max_depth`: the integrator's, for the record).
+/// image with its sidecar (`options`: the integrator's, for the record).
 #[allow(clippy::too_many_arguments)]
 pub fn make_reference(
     scene: &Scene,
     scene_name: &str,
     integrator: &dyn Integrator,
     integrator_name: &str,
-    max_depth: u32,
+    options: &IntegratorOptions,
     spp: u32,
     passes: u32,
     seed: u64,
@@ -113,7 +118,8 @@ pub fn make_reference(
     let meta = ReferenceMeta {
         scene: scene_name.to_string(),
         integrator: integrator_name.to_string(),
-        max_depth: Some(max_depth),
+        max_depth: Some(options.max_depth),
+        mis: Some(effective_mis(integrator_name, options.mis).name().to_string()),
         spp,
         passes,
         seed,

@@ -628,7 +628,7 @@ fn small_subcommands_refuse_before_writing() {
 }
 
 /// `prism reference` takes `--max-depth` and `--mis` as `render` does (it
-/// took the depth from the scene alone, an audit found): the white room
+/// took the depth from the scene alone, an audit found) and records both: the white room
 /// (Le 0.5, albedo 0.8) cut at 2 scattering events reads
 /// 0.5 (1 - 0.8^3) / 0.2 = 1.22, not its unbounded 2.5, and the sidecar
 /// says so; a `--mis` for `path`, which reads none, is a warning.
@@ -664,5 +664,22 @@ fn references_take_the_estimators_options() {
     let y = |p: &[f32; 3]| 0.2126 * p[0] as f64 + 0.7152 * p[1] as f64 + 0.0722 * p[2] as f64;
     let mean = pixels.iter().map(y).sum::<f64>() / pixels.len() as f64;
     assert!((mean - 1.22).abs() < 0.02, "the white room at depth 2 reads {mean}, not 1.22");
+    assert_eq!(read_json(&out.with_extension("json"))["mis"], "power", "path reads no heuristic: the default");
+
+    // bdpt's heuristic is recorded, and `converge` takes the reference's
+    // noise floor from the line of that heuristic (it assumed the default).
+    let bal = d.join("bal.exr");
+    let small = ["--spp", "2", "--width", "8", "--height", "8", "--threads", "1"];
+    let reference = ["reference", "scenes/cornell-box.json", "--integrator", "bdpt", "--mis", "balance"];
+    let o = prism(&[&reference[..], &small, &["--passes", "2", "--out", bal.to_str().unwrap()]].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(read_json(&bal.with_extension("json"))["mis"], "balance");
+    let conv = d.join("conv");
+    let converge = ["converge", "scenes/cornell-box.json", "--integrators", "bdpt,bdpt:balance", "--reference"];
+    let o = prism(&[&converge[..], &[bal.to_str().unwrap(), "--out", conv.to_str().unwrap()], &small].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let results = read_json(&conv.join("results.json"));
+    assert_eq!(results["reference"]["mis"], "balance");
+    assert_eq!(results["reference"]["noise_floor_method"], "same estimator (bdpt:balance)");
     let _ = std::fs::remove_dir_all(&d);
 }

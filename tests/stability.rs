@@ -663,6 +663,14 @@ fn an_emitter_in_a_surface_is_named() {
         let s = parse_scene(text, case, Path::new(".")).unwrap().build();
         assert_eq!(s.emitters_on_surfaces(), None, "the {case} mirror room");
     }
+    // Nor a T-junction (vertex 4 on the edge 3-5), turned, whose vertex
+    // rounds a hair off its neighbour's edge (a review found it warned).
+    let panel = r#",
+    {"name": "panel", "shape": {"type": "mesh", "positions": [[0, 0, 0], [0.5, 0, 0], [1, 0, 0], [0, 1, 0], [0.5, 1, 0], [1, 1, 0], [0, 2, 0], [1, 2, 0]],
+     "indices": [[0, 1, 4], [0, 4, 3], [1, 2, 5], [1, 5, 4], [3, 5, 7], [3, 7, 6]]}, "material": "white", "emission": 1,
+     "transform": {"rotate": {"axis": [1, 0.3, 0.2], "degrees": 37}, "translate": [0.1, -0.2, 0.5]}}"#;
+    let s = parse_scene(&stage("", panel, "", None), "t-junction", Path::new(".")).unwrap().build();
+    assert_eq!(s.emitters_on_surfaces(), None, "a T-junction");
 }
 
 /// A point light on a surface is named (`Scene::point_lights_on_surfaces`):
@@ -693,6 +701,13 @@ fn a_point_light_on_a_surface_is_named() {
     for (case, at) in [("1e-4 off the turned quad", off_tilted), ("beyond the floor's edge", "[3, 0, 0.4]")] {
         assert_eq!(warning(at), None, "{case}");
     }
+    // Nor 0.05 over a ground of 1e5, whose coordinates' rounding is ~0.01
+    // (the tolerance is the light's; a review found it warned).
+    let ground = r#",
+    {"name": "ground", "shape": {"type": "quad", "corners": [[-1e5, -1, -1e5], [-1e5, -1, 1e5], [1e5, -1, 1e5], [1e5, -1, -1e5]]}, "material": "white"}"#;
+    let light = r#"{"type": "point", "name": "bulb", "position": [0.3, -0.95, 0.2], "intensity": 2}"#;
+    let s = parse_scene(&stage("", ground, light, None), "ground", Path::new(".")).unwrap().build();
+    assert_eq!(s.point_lights_on_surfaces(), None, "0.05 over a ground of 1e5");
 }
 
 #[test]

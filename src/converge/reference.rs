@@ -76,8 +76,8 @@ fn render_reference(
     for dir in out.parent().filter(|d| !d.as_os_str().is_empty()).into_iter().chain([cfg.out.as_path()]) {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     }
-    let estimator = integrators::create(integrator, &IntegratorOptions { max_depth, mis: MisHeuristic::Power })
-        .map_err(anyhow::Error::msg)?;
+    let options = IntegratorOptions { max_depth, mis: MisHeuristic::Power };
+    let estimator = integrators::create(integrator, &options).map_err(anyhow::Error::msg)?;
     let per_pass = spp.div_ceil(passes);
     let total = per_pass as u64 * passes as u64;
     if total != spp as u64 {
@@ -92,7 +92,7 @@ fn render_reference(
         scene_name,
         estimator.as_ref(),
         integrator,
-        max_depth,
+        &options,
         per_pass,
         passes,
         ref_seed,
@@ -261,8 +261,8 @@ impl Origin {
             height: m.height,
             spp: m.spp as u64 * m.passes as u64,
             passes: Some(m.passes),
-            // (`make_reference` renders with the default options.)
-            mis: crate::integrators::MisHeuristic::default().name().to_string(),
+            // (References made before it was recorded used the default.)
+            mis: m.mis.clone().unwrap_or_else(|| crate::integrators::MisHeuristic::default().name().to_string()),
             max_depth: m.max_depth,
             first_sample: 0,
             wall_seconds: Some(m.wall_seconds),
