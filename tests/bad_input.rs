@@ -226,7 +226,7 @@ const CASES: &[Case] = &[
         args: &[],
         out: "out.exr",
         position: "s.json:5:",
-        words: &["lights[0].radiance: must be at most 2.8147498e14, the largest sample value the film records (max 1e15)"],
+        words: &["lights[0].radiance: must be at most 2.8147498e14 (2^48), the film's bound on one sample's colour (max 1e15)"],
     },
     Case {
         id: "second-environment",

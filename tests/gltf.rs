@@ -307,7 +307,7 @@ fn unsupported_features_are_named_errors() {
     light["extensions"]["KHR_materials_emissive_strength"]["emissiveStrength"] = json!(3.4e38);
     let e = parse(&v, "cornell-box (emissiveStrength 3.4e38)").err().unwrap();
     assert!(e.contains("materials[3] \"light\": the emitted spectrum is not finite at every wavelength"), "{e}");
-    // Finite, but past the largest sample value the film records; the
+    // Finite, but past the film's bound on one sample's colour; the
     // measured spectrum of the extras alike (1e15 at its peak).
     v["materials"][3]["extensions"]["KHR_materials_emissive_strength"]["emissiveStrength"] = json!(1e15);
     let e = parse(&v, "cornell-box (emissiveStrength 1e15)").err().unwrap();

@@ -207,7 +207,7 @@ pub const MAX_RADIANCE: f32 = crate::film::MAX_SAMPLE;
 pub fn check_radiance(s: &Spectrum) -> Result<(), String> {
     match s.max_value() > MAX_RADIANCE {
         true => Err(format!(
-            "must be at most {MAX_RADIANCE:e}, the largest sample value the film records (max {:e})",
+            "must be at most {MAX_RADIANCE:e} (2^48), the film's bound on one sample's colour (max {:e})",
             s.max_value()
         )),
         false => Ok(()),
