@@ -53,11 +53,7 @@ impl Scene {
         };
         let found: Vec<(&str, String)> =
             emitters.par_iter().filter_map(|&(e, name)| Some((name, surface_of(e)?))).collect();
-        let (name, surface) = found.first()?;
-        let more = match found.len() {
-            1 => String::new(),
-            n => format!(" (and {} more emitting triangles)", n - 1),
-        };
+        let (name, surface, more) = first_and_more(&found, "emitting triangles")?;
         Some(format!(
             "the emitter \"{name}\" lies in the plane of {surface} and overlaps it{more}: which of the two a ray meets there is decided by rounding, so the estimators disagree (move the emitter off the surface, or cut the surface away under it; for a lamp that emits both ways, one emitter with \"two_sided\")"
         ))
@@ -95,11 +91,7 @@ impl Scene {
                 _ => None,
             })
             .collect();
-        let (name, surface) = found.first()?;
-        let more = match found.len() {
-            1 => String::new(),
-            n => format!(" (and {} more point lights)", n - 1),
-        };
+        let (name, surface, more) = first_and_more(&found, "point lights")?;
         Some(format!(
             "the point light \"{name}\" lies on {surface}{more}: whether its light meets that surface where the light stands is decided by rounding, and the estimators can disagree (move the light off the surface)"
         ))
@@ -111,6 +103,17 @@ impl Scene {
         let mesh = &self.meshes[mesh_index(&self.meshes, prim)];
         format!("a \"{}\" surface", self.materials[mesh.material as usize].name)
     }
+}
+
+/// The first of `found` (a name and the surface it lies on), and
+/// " (and n more `what`)" for the rest, if any.
+fn first_and_more<'a>(found: &'a [(&'a str, String)], what: &str) -> Option<(&'a str, &'a str, String)> {
+    let (name, surface) = found.first()?;
+    let more = match found.len() {
+        1 => String::new(),
+        n => format!(" (and {} more {what})", n - 1),
+    };
+    Some((name, surface, more))
 }
 
 /// Whether point `p` lies in the plane of triangle `t` within a few units
