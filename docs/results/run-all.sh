@@ -3,7 +3,7 @@
 # the suite, a reference rendered by `prism converge` itself (kept out of the
 # repository, in target/converge-refs/) and a run of 20 CPU-seconds per
 # integrator at 128x128. About 12 minutes on a 2-core machine (11 min 47 s in
-# session 25).
+# session 25, 12 min 43 s in session 40).
 # The references have 4x the samples of session 8's: at today's speed the
 # integrators' 20 s runs reach errors the old references' own noise would
 # have been up to ~70 % of (11-64 % of session 8's errors).
