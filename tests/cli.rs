@@ -636,32 +636,15 @@ fn small_subcommands_refuse_before_writing() {
 fn references_take_the_estimators_options() {
     let d = temp_dir("reference-depth");
     let out = d.join("r.exr");
-    let o = prism(&[
-        "reference",
-        "scenes/white-room.json",
-        "--spp",
-        "64",
-        "--passes",
-        "2",
-        "--width",
-        "8",
-        "--height",
-        "8",
-        "--threads",
-        "1",
-        "--max-depth",
-        "2",
-        "--mis",
-        "balance",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let small = ["--width", "8", "--height", "8", "--threads", "1", "--passes", "2"];
+    let depth_2 = ["reference", "scenes/white-room.json", "--spp", "64", "--max-depth", "2", "--mis", "balance"];
+    let o = prism(&[&depth_2[..], &small, &["--out", out.to_str().unwrap()]].concat());
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("--mis sets bdpt's heuristic; path reads none"), "{}", stderr(&o));
     assert_eq!(read_json(&out.with_extension("json"))["max_depth"], 2);
     let (_, _, pixels) = prism::film::read_exr(&out).unwrap();
-    // Luminance (linear sRGB's Y row): the room's spectra are constant.
-    let y = |p: &[f32; 3]| 0.2126 * p[0] as f64 + 0.7152 * p[1] as f64 + 0.0722 * p[2] as f64;
+    // Luminance: the room's spectra are constant.
+    let y = |p: &[f32; 3]| prism::stats::luminance(p.map(f64::from));
     let mean = pixels.iter().map(y).sum::<f64>() / pixels.len() as f64;
     assert!((mean - 1.22).abs() < 0.02, "the white room at depth 2 reads {mean}, not 1.22");
     assert_eq!(read_json(&out.with_extension("json"))["mis"], "power", "path reads no heuristic: the default");
@@ -669,14 +652,14 @@ fn references_take_the_estimators_options() {
     // bdpt's heuristic is recorded, and `converge` takes the reference's
     // noise floor from the line of that heuristic (it assumed the default).
     let bal = d.join("bal.exr");
-    let small = ["--spp", "2", "--width", "8", "--height", "8", "--threads", "1"];
-    let reference = ["reference", "scenes/cornell-box.json", "--integrator", "bdpt", "--mis", "balance"];
-    let o = prism(&[&reference[..], &small, &["--passes", "2", "--out", bal.to_str().unwrap()]].concat());
+    let reference = ["reference", "scenes/cornell-box.json", "--integrator", "bdpt", "--mis", "balance", "--spp", "2"];
+    let o = prism(&[&reference[..], &small, &["--out", bal.to_str().unwrap()]].concat());
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(read_json(&bal.with_extension("json"))["mis"], "balance");
     let conv = d.join("conv");
     let converge = ["converge", "scenes/cornell-box.json", "--integrators", "bdpt,bdpt:balance", "--reference"];
-    let o = prism(&[&converge[..], &[bal.to_str().unwrap(), "--out", conv.to_str().unwrap()], &small].concat());
+    let run = ["--spp", "2", "--width", "8", "--height", "8", "--threads", "1", "--out", conv.to_str().unwrap()];
+    let o = prism(&[&converge[..], &[bal.to_str().unwrap()], &run].concat());
     assert!(o.status.success(), "{}", stderr(&o));
     let results = read_json(&conv.join("results.json"));
     assert_eq!(results["reference"]["mis"], "balance");

@@ -58,9 +58,7 @@ impl Scene {
             "the emitter \"{name}\" lies in the plane of {surface} and overlaps it{more}: which of the two a ray meets there is decided by rounding, so the estimators disagree (move the emitter off the surface, or cut the surface away under it; for a lamp that emits both ways, one emitter with \"two_sided\")"
         ))
     }
-}
 
-impl Scene {
     /// A warning naming the point lights that lie on a triangle: within a
     /// few units in the last place of the light's coordinates of its
     /// plane, inside it or on its edge. Whether such a light's rays meet
@@ -131,11 +129,8 @@ fn holds(t: &[Vec3A; 3], p: Vec3A) -> bool {
     if (q - a).dot(n).abs() > tolerance {
         return false;
     }
-    let drop = |v: DVec3| match n.abs().max_position() {
-        0 => DVec2::new(v.y, v.z),
-        1 => DVec2::new(v.z, v.x),
-        _ => DVec2::new(v.x, v.y),
-    };
+    let [i, j] = kept_axes(n.abs().max_position());
+    let drop = |v: DVec3| DVec2::new(v[i], v[j]);
     let (t, p) = ([a, b, c].map(drop), drop(q));
     // The edge functions, each measured from its edge's first vertex.
     let side = |i: usize| (t[(i + 1) % 3] - t[i]).perp_dot(p - t[i]);
@@ -143,14 +138,11 @@ fn holds(t: &[Vec3A; 3], p: Vec3A) -> bool {
     s.iter().all(|&x| x >= 0.0) || s.iter().all(|&x| x <= 0.0)
 }
 
-/// `v` projected along the largest axis of `n`, which keeps a plane of
-/// normal `n` from collapsing.
-fn drop_axis(v: Vec3A, n: Vec3A) -> Vec2 {
-    match n.abs().max_position() {
-        0 => Vec2::new(v.y, v.z),
-        1 => Vec2::new(v.z, v.x),
-        _ => Vec2::new(v.x, v.y),
-    }
+/// The two axes kept when a plane is projected along its normal's largest
+/// axis `dropped`, which keeps the plane from collapsing (in cyclic order,
+/// so the projection keeps its orientation).
+fn kept_axes(dropped: usize) -> [usize; 2] {
+    [(dropped + 1) % 3, (dropped + 2) % 3]
 }
 
 /// Whether triangle `t` lies in the plane of emitter `e` (unit normal `n`)
@@ -164,7 +156,9 @@ fn lies_on(e: &[Vec3A; 3], n: Vec3A, t: &[Vec3A; 3]) -> bool {
     // Projected along the normal's largest axis, which keeps the plane's
     // area (up to a factor), the triangles overlap unless an edge of one
     // separates them (the separating axis theorem); touching is separated.
-    let (a, b) = (e.map(|v| drop_axis(v, n)), t.map(|v| drop_axis(v, n)));
+    let [i, j] = kept_axes(n.abs().max_position());
+    let drop = |v: Vec3A| Vec2::new(v[i], v[j]);
+    let (a, b) = (e.map(drop), t.map(drop));
     // Measured from the edge's first vertex, the edge's own vertices are
     // at exactly 0 on its normal (-e_y e_x + e_x e_y), wherever they are
     // (measured from the origin, the two ends of a shared edge rounded
