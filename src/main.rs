@@ -69,7 +69,9 @@ enum Command {
 
 #[derive(clap::Args)]
 struct ReferenceArgs {
+    /// Scene file (JSON, or glTF: .gltf / .glb).
     scene: PathBuf,
+    /// Estimator (see `prism integrators`).
     #[arg(long, default_value = "path")]
     integrator: String,
     #[command(flatten)]
@@ -80,15 +82,20 @@ struct ReferenceArgs {
     /// Number of independent passes (seeds seed, seed+1, ...).
     #[arg(long, default_value_t = 16)]
     passes: u32,
+    /// Seed of the first pass (not the scene's: a reference must be
+    /// independent of the renders it is compared with).
     #[arg(long, default_value_t = 1000)]
     seed: u64,
+    /// Image width in pixels.
     #[arg(long)]
     width: u32,
+    /// Image height in pixels.
     #[arg(long)]
     height: u32,
     /// Block size (pixels) of the stored statistics.
     #[arg(long, default_value_t = 8)]
     block: u32,
+    /// Worker threads (0 = all cores).
     #[arg(long, default_value_t = 0)]
     threads: usize,
     /// Output EXR; the sidecar goes next to it (.json).
@@ -133,7 +140,8 @@ struct RenderArgs {
     /// Estimator (see `prism integrators`); default: the scene's, else `path`.
     #[arg(long)]
     integrator: Option<String>,
-    /// Samples per pixel (light tracing: light paths per pixel).
+    /// Samples per pixel (light tracing: light paths per pixel); default:
+    /// the scene's, else 16.
     #[arg(long)]
     spp: Option<u32>,
     /// Output EXR.
@@ -145,10 +153,13 @@ struct RenderArgs {
     /// PNG exposure in stops (with --png).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, requires = "png")]
     exposure: f32,
+    /// Image width in pixels, with --height; default: the scene's camera.
     #[arg(long)]
     width: Option<u32>,
+    /// Image height in pixels, with --width.
     #[arg(long)]
     height: Option<u32>,
+    /// Seed of the samples; default: the scene's, else 0.
     #[arg(long)]
     seed: Option<u64>,
     /// Worker threads (0 = all cores).

@@ -125,6 +125,18 @@ const CASES: &[Case] = &[
         words: &["materials.white.k: must be at most 1e6 (max 1e10)"],
     },
     Case {
+        // An rgb `k` is a shape in [0, 1], as a reflectance is; `scale` is its magnitude.
+        id: "rgb-extinction-above-one",
+        edits: &[(
+            "{\"type\": \"diffuse\", \"reflectance\": 0.5}",
+            "{\"type\": \"conductor\", \"eta\": 1, \"k\": {\"rgb\": [3, 3, 3]}}",
+        )],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:3:",
+        words: &["materials.white.k: an rgb other than an emission is a shape in [0, 1]; \"scale\" sets its magnitude"],
+    },
+    Case {
         id: "tiny-ior",
         edits: &[("{\"type\": \"diffuse\", \"reflectance\": 0.5}", "{\"type\": \"dielectric\", \"ior\": 1e-20, \"roughness\": 0.5}")],
         args: &[],

@@ -146,15 +146,19 @@ pub struct ConvergeArgs {
     /// Output directory (created if missing).
     #[arg(long)]
     pub out: PathBuf,
+    /// Image width in pixels, with --height; default: the scene's camera.
     #[arg(long)]
     pub width: Option<u32>,
+    /// Image height in pixels, with --width.
     #[arg(long)]
     pub height: Option<u32>,
+    /// Seed of the renders; default: the scene's, else 0.
     #[arg(long)]
     pub seed: Option<u64>,
     /// Worker threads (0 = all cores).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
+    /// Maximum scattering events; default: the scene's, else 1024.
     #[arg(long)]
     pub max_depth: Option<u32>,
     /// PNG exposure in stops (default: automatic, from the reference).

@@ -765,7 +765,8 @@ impl<'a> Ctx<'a> {
     }
 
     /// Linear sRGB (finite): an illuminant shape for emission, else a
-    /// reflectance in [0, 1] (Jakob & Hanika 2019).
+    /// reflectance-like shape in [0, 1] (Jakob & Hanika 2019), which is
+    /// what a `k` or an `ior` given as rgb is too, `scale` its magnitude.
     fn rgb_spectrum(&self, path: &[Seg], rgb: &[f32; 3], usage: Use) -> Result<Spectrum, LoadError> {
         if rgb.iter().any(|&c| c < 0.0) {
             return Err(self.err(path, "rgb components must be >= 0"));
@@ -774,7 +775,11 @@ impl<'a> Ctx<'a> {
             return Ok(spectrum::rgb_illuminant(*rgb));
         }
         if rgb.iter().any(|&c| c > 1.0) {
-            return Err(self.err(path, "a reflectance rgb must lie in [0, 1]"));
+            let what = match usage {
+                Use::Reflectance => "a reflectance rgb must lie in [0, 1]",
+                _ => "an rgb other than an emission is a shape in [0, 1]; \"scale\" sets its magnitude",
+            };
+            return Err(self.err(path, what));
         }
         Ok(spectrum::rgb_albedo(*rgb))
     }
