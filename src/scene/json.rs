@@ -1164,14 +1164,7 @@ fn strip_position(msg: &str) -> String {
 }
 
 fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
-    let cam_path = [Seg::Key("camera".into())];
-    let c = &f.camera;
-    let position = ctx.vec3(&with(&cam_path, "position"), c.position)?;
-    let look_at = ctx.vec3(&with(&cam_path, "look_at"), c.look_at)?;
-    let up = ctx.vec3(&with(&cam_path, "up"), c.up)?;
-    if !(c.fov.is_finite() && c.fov > 0.0 && c.fov < 180.0) {
-        return Err(ctx.err(&with(&cam_path, "fov"), "fov must be between 0 and 180 degrees"));
-    }
+    let mut b = SceneBuilder::new(camera(ctx, &f.camera)?);
     // Every entry of `spectra` is checked, used or not, as far as its form
     // allows without knowing its use (names and rgb depend on it; they are
     // checked where used).
@@ -1179,6 +1172,27 @@ fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
         if !matches!(spec, SpectrumSpec::Name(_) | SpectrumSpec::Rgb(..)) {
             ctx.spectrum(&[Seg::Key("spectra".into()), Seg::Key(name.clone())], spec, Use::Other)?;
         }
+    }
+    let mut material_ids = BTreeMap::new();
+    for (name, spec) in &f.materials {
+        let path = [Seg::Key("materials".into()), Seg::Key(name.clone())];
+        let bsdf = ctx.material(&path, spec)?;
+        material_ids.insert(name.clone(), b.material(name, bsdf));
+    }
+    objects(ctx, &mut b, &f.objects, &material_ids)?;
+    lights(ctx, &mut b, &f.lights)?;
+    b.defaults = render_defaults(ctx, &f.render)?;
+    Ok(b)
+}
+
+/// The pinhole camera of `camera`, each field checked.
+fn camera(ctx: &Ctx, c: &CameraSpec) -> Result<Camera, LoadError> {
+    let cam_path = [Seg::Key("camera".into())];
+    let position = ctx.vec3(&with(&cam_path, "position"), c.position)?;
+    let look_at = ctx.vec3(&with(&cam_path, "look_at"), c.look_at)?;
+    let up = ctx.vec3(&with(&cam_path, "up"), c.up)?;
+    if !(c.fov.is_finite() && c.fov > 0.0 && c.fov < 180.0) {
+        return Err(ctx.err(&with(&cam_path, "fov"), "fov must be between 0 and 180 degrees"));
     }
     if let Err(e) = Camera::check_resolution(c.width, c.height) {
         // The field at fault: a zero height, else the width.
@@ -1195,32 +1209,33 @@ fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
     if !camera.has_image_area() {
         return Err(ctx.err(&with(&cam_path, "fov"), format!("fov {:e} is too small: the image has no area", c.fov)));
     }
-    let mut b = SceneBuilder::new(camera);
+    Ok(camera)
+}
 
-    let mut material_ids = BTreeMap::new();
-    for (name, spec) in &f.materials {
-        let path = [Seg::Key("materials".into()), Seg::Key(name.clone())];
-        let bsdf = ctx.material(&path, spec)?;
-        material_ids.insert(name.clone(), b.material(name, bsdf));
-    }
-
+/// Adds the `objects`: each shape as a mesh, transformed and checked.
+fn objects(
+    ctx: &Ctx,
+    b: &mut SceneBuilder,
+    objects: &[ObjectSpec],
+    material_ids: &BTreeMap<String, u32>,
+) -> Result<(), LoadError> {
     // Spheres first, by the triangles they declare: a line each, they
     // could otherwise fill the memory before the count is over.
     let mut declared = 0usize;
-    for (i, o) in f.objects.iter().enumerate() {
+    for (i, o) in objects.iter().enumerate() {
         declared = declared.saturating_add(o.shape.declared_triangles());
         let path = with(&with_index(&[Seg::Key("objects".into())], i), "shape");
         check_triangle_count(declared).map_err(|e| ctx.err(&path, e))?;
     }
-    for (i, o) in f.objects.iter().enumerate() {
+    for (i, o) in objects.iter().enumerate() {
         let path = with_index(&[Seg::Key("objects".into())], i);
         let name = o.name.clone().unwrap_or_else(|| format!("object {i}"));
         if let ShapeSpec::Gltf(g) = &o.shape {
-            include_gltf(ctx, &mut b, &path, &name, o, g, &material_ids)?;
+            include_gltf(ctx, b, &path, &name, o, g, material_ids)?;
             continue;
         }
         let material = match &o.material {
-            Some(m) => material_id(ctx, &material_ids, m, &with(&path, "material"))?,
+            Some(m) => material_id(ctx, material_ids, m, &with(&path, "material"))?,
             None => return Err(ctx.err(&path, "missing field `material`")),
         };
         let mut mesh = ctx.shape(&with(&path, "shape"), &o.shape)?;
@@ -1239,11 +1254,15 @@ fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
         };
         b.mesh(&name, mesh, material, emission);
     }
+    Ok(())
+}
 
-    // The environment is what every escaped ray sees, so a scene has one
-    // (as in Mitsuba); two would be half seen and fully sampled.
+/// Adds the point and environment `lights`. The environment is what every
+/// escaped ray sees, so a scene has one (as in Mitsuba); two would be half
+/// seen and fully sampled.
+fn lights(ctx: &Ctx, b: &mut SceneBuilder, lights: &[LightSpec]) -> Result<(), LoadError> {
     let mut environment = None;
-    for (i, l) in f.lights.iter().enumerate() {
+    for (i, l) in lights.iter().enumerate() {
         let path = with_index(&[Seg::Key("lights".into())], i);
         match l {
             LightSpec::Point(p) => {
@@ -1262,7 +1281,11 @@ fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
             }
         }
     }
-    let r = &f.render;
+    Ok(())
+}
+
+/// The `render` block: defaults that command-line flags override.
+fn render_defaults(ctx: &Ctx, r: &RenderSpec) -> Result<RenderDefaults, LoadError> {
     if r.spp == Some(0) {
         return Err(ctx.err(&[Seg::Key("render".into()), Seg::Key("spp".into())], "spp must be at least 1"));
     }
@@ -1271,11 +1294,10 @@ fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
             return Err(ctx.err(&[Seg::Key("render".into()), Seg::Key("integrator".into())], e));
         }
     }
-    b.defaults = RenderDefaults {
+    Ok(RenderDefaults {
         spp: r.spp,
         max_depth: r.max_depth,
         integrator: r.integrator.clone(),
         seed: r.seed.as_ref().map(|s| s.0),
-    };
-    Ok(b)
+    })
 }

@@ -291,34 +291,10 @@ impl SceneBuilder {
         let mut records = Vec::with_capacity(self.meshes.len());
         let mut start = 0u32;
         for (mesh, material, emission, name) in &self.meshes {
-            let mut mesh_lights = Vec::new();
-            if let Some((le, two_sided)) = emission {
-                mesh_lights.reserve_exact(mesh.len());
-                for (k, idx) in mesh.indices.iter().enumerate() {
-                    let v = idx.map(|i| mesh.positions[i as usize]);
-                    let (ng, area) = normal_and_area(&v);
-                    let mut light = NO_LIGHT;
-                    // Not a triangle the BVH leaves out as degenerate: f32's
-                    // cross product of an exactly collinear one need not be
-                    // 0, and a light no ray can hit would make next-event
-                    // estimation and light tracing see more than path
-                    // tracing's hits.
-                    if area > 0.0 && area.is_finite() && !crate::accel::is_degenerate(&v) {
-                        light = lights.len() as u32;
-                        lights.push(Light::Area(AreaLight {
-                            v,
-                            n: ng,
-                            area,
-                            le: le.clone(),
-                            two_sided: *two_sided,
-                            prim: start + k as u32,
-                            slot: NO_TRIANGLE,
-                        }));
-                        light_names.push(format!("{name} (triangle {k})"));
-                    }
-                    mesh_lights.push(light);
-                }
-            }
+            let mesh_lights = match emission {
+                Some(e) => area_lights(mesh, e, start, name, &mut lights, &mut light_names),
+                None => Vec::new(),
+            };
             records.push(MeshRecord { start, material: *material, lights: mesh_lights, shading: None });
             start =
                 u32::try_from(mesh.len()).ok().and_then(|n| start.checked_add(n)).expect("at most 2^32 - 2 triangles");
@@ -384,6 +360,44 @@ impl SceneBuilder {
             defaults: self.defaults,
         }
     }
+}
+
+/// One area light per triangle of the emitting `mesh` (its first triangle
+/// is primitive `start`), appended to `lights` and `names`; returns each
+/// triangle's light index, `NO_LIGHT` for a triangle that cannot emit.
+fn area_lights(
+    mesh: &Mesh,
+    (le, two_sided): &(Spectrum, bool),
+    start: u32,
+    name: &str,
+    lights: &mut Vec<Light>,
+    names: &mut Vec<String>,
+) -> Vec<u32> {
+    let mut mesh_lights = Vec::with_capacity(mesh.len());
+    for (k, idx) in mesh.indices.iter().enumerate() {
+        let v = idx.map(|i| mesh.positions[i as usize]);
+        let (ng, area) = normal_and_area(&v);
+        let mut light = NO_LIGHT;
+        // Not a triangle the BVH leaves out as degenerate: f32's cross
+        // product of an exactly collinear one need not be 0, and a light no
+        // ray can hit would make next-event estimation and light tracing see
+        // more than path tracing's hits.
+        if area > 0.0 && area.is_finite() && !crate::accel::is_degenerate(&v) {
+            light = lights.len() as u32;
+            lights.push(Light::Area(AreaLight {
+                v,
+                n: ng,
+                area,
+                le: le.clone(),
+                two_sided: *two_sided,
+                prim: start + k as u32,
+                slot: NO_TRIANGLE,
+            }));
+            names.push(format!("{name} (triangle {k})"));
+        }
+        mesh_lights.push(light);
+    }
+    mesh_lights
 }
 
 impl Scene {
