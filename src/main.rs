@@ -434,6 +434,27 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
         }
         builder.set_resolution(w, h).map_err(|e| anyhow!("--width, --height: {e}"))?;
     }
+    check_render_outputs(a)?;
+    let scene_bytes = std::fs::read(&a.scene).with_context(|| format!("cannot read {}", a.scene.display()))?;
+    let scene = builder.build();
+    let identity = Identity {
+        scene: a.scene.display().to_string(),
+        scene_hash: format!("{:016x}", fnv1a(&scene_bytes)),
+        integrator: name,
+        seed,
+        width: scene.camera.width,
+        height: scene.camera.height,
+        max_depth,
+        mis: mis.name().to_string(),
+    };
+    let opts = RenderOptions { seed, threads: a.threads, progress: !a.quiet };
+    Ok(Setup { scene, integrator, identity, spp, opts })
+}
+
+/// The files a render will write, checked before it starts: their
+/// extensions, no interrupted render's state or checkpoint replaced, none
+/// of them the scene, the checkpoint it resumes or a strategy's image.
+fn check_render_outputs(a: &RenderArgs) -> Result<()> {
     ensure_exr("--out", &a.out)?;
     if let Some(png) = &a.png {
         film::ensure_extension("--png", png, "png")?;
@@ -469,20 +490,7 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
             bail!("{role} {} is where --strategies writes a strategy's image: choose another name", path.display());
         }
     }
-    let scene_bytes = std::fs::read(&a.scene).with_context(|| format!("cannot read {}", a.scene.display()))?;
-    let scene = builder.build();
-    let identity = Identity {
-        scene: a.scene.display().to_string(),
-        scene_hash: format!("{:016x}", fnv1a(&scene_bytes)),
-        integrator: name,
-        seed,
-        width: scene.camera.width,
-        height: scene.camera.height,
-        max_depth,
-        mis: mis.name().to_string(),
-    };
-    let opts = RenderOptions { seed, threads: a.threads, progress: !a.quiet };
-    Ok(Setup { scene, integrator, identity, spp, opts })
+    Ok(())
 }
 
 /// Every file a render writes beside --out, by role (not the per-strategy
