@@ -82,7 +82,7 @@ fn light_and_path_agree_on_the_cornell_box() {
     assert!(!v.passed(), "the missing cosine went undetected: {v}");
 }
 
-/// A camera at the centre of a sphere whose inside emits Le = 1 and
+/// A camera inside a sphere, off its centre, whose inside emits Le = 1 and
 /// reflects nothing: every pixel sees radiance 1, so light tracing's splats
 /// must make a flat image, whatever the pixel's angle to the optical axis.
 fn emitting_sphere() -> Scene {
