@@ -112,6 +112,25 @@ fn first_perspective_camera_is_used() {
     assert!((top.y.atan2(-top.z) - 0.35).abs() < 1e-4);
 }
 
+/// prism's pinhole takes a camera node's position, -z and +y; a mirroring
+/// or uneven scale, which a rasteriser's view (the inverse of the node's
+/// transform) would show as a flipped or stretched image, is named (from
+/// an audit: a mirrored camera rendered unmirrored without a word).
+#[test]
+fn a_mirrored_or_stretched_camera_is_named() {
+    let warned = |scale: [f32; 3]| {
+        let mut v = read_json(&dir().join("Cameras.gltf"));
+        v["nodes"][1]["scale"] = json!(scale);
+        let g = parse(&v, "Cameras (scaled)").unwrap();
+        g.messages.into_iter().find(|m| m.contains("the camera's transform")).unwrap_or_default()
+    };
+    let m = warned([-1.0, 1.0, 1.0]);
+    assert!(m.contains("nodes[1]: the camera's transform mirrors (its determinant is negative): rendered from its position, -z and +y alone"), "{m}");
+    assert!(warned([1.0, 2.0, 1.0]).contains("scales unevenly or shears"));
+    assert_eq!(warned([2.0, 2.0, 2.0]), "", "a uniform scale changes nothing");
+    assert_eq!(warned([1.0, 1.0, 1.0]), "");
+}
+
 #[test]
 fn metallic_base_colour_becomes_a_conductor_with_that_reflectance() {
     let scene = load("Box.gltf").builder.build();
@@ -710,6 +729,82 @@ fn cornell_gltf_rgb_matches_json_rgb_variant() {
     );
 }
 
+/// Invalid glTF the crate's validator lets through is named, not read one
+/// way in silence (from an audit): TRS beside a matrix, a projective last
+/// row, a strip of two vertices, a mesh without primitives, a version that
+/// is not 2.x, an emissiveFactor above 1; indices with a byteStride, which
+/// readers that ignore it would wind otherwise, are refused.
+#[test]
+fn invalid_constructs_are_named() {
+    let warns = |edit: &dyn Fn(&mut Value), needle: &str| {
+        let mut v = read_json(&dir().join("Triangle.gltf"));
+        edit(&mut v);
+        let g = parse(&v, "Triangle (edited)").unwrap_or_else(|e| panic!("{e}"));
+        assert!(has(&g.messages, needle), "no {needle:?} in {:#?}", g.messages);
+    };
+    let matrix = json!([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]);
+    warns(
+        &|v| {
+            v["nodes"][0]
+                .as_object_mut()
+                .unwrap()
+                .extend([("matrix".into(), matrix.clone()), ("translation".into(), json!([1, 0, 0]))])
+        },
+        "nodes[0]: the node has a matrix and translation, rotation or scale: the matrix is used",
+    );
+    warns(
+        &|v| v["nodes"][0]["matrix"] = json!([1, 0, 0, 0.5, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]),
+        "the matrix's last row [0.5, 0.0, 0.0, 1.0] is not [0, 0, 0, 1]: dropped",
+    );
+    warns(
+        &|v| {
+            v["meshes"][0]["primitives"][0]["mode"] = json!(5);
+            v["accessors"][0]["count"] = json!(2);
+        },
+        "2 vertices make no triangle (mode TriangleStrip)",
+    );
+    warns(&|v| v["asset"]["version"] = json!("1.0"), "asset.version: version 1.0 is not glTF 2.x: read as glTF 2.0");
+    warns(
+        &|v| {
+            v["materials"] = json!([{"emissiveFactor": [2, 1, 1]}]);
+            v["meshes"][0]["primitives"][0]["material"] = json!(0);
+        },
+        "emissiveFactor [2.0, 1.0, 1.0] is above 1 (invalid glTF",
+    );
+    let mut v = read_json(&dir().join("Triangle.gltf"));
+    v["nodes"][0]["mesh"] = json!(1);
+    v["meshes"].as_array_mut().unwrap().push(json!({"primitives": []}));
+    let g = parse(&v, "Triangle (no primitives)").unwrap_or_else(|e| panic!("{e}"));
+    assert!(has(&g.messages, "meshes[1]): the mesh has no primitives (glTF requires one)"), "{:#?}", g.messages);
+    let mut v = read_json(&dir().join("Triangle.gltf"));
+    v["bufferViews"][0]["byteStride"] = json!(4);
+    let e = parse(&v, "Triangle (strided indices)").err().unwrap();
+    assert!(e.contains("bufferViews[0] of the indices has a byteStride (only vertex attributes may)"), "{e}");
+}
+
+/// The crate's validation faults name their field and its line, as the
+/// scene loader's do (from an audit: they read `invalid glTF: invalid
+/// glTF: nodes[0].children[0]: Index out of bounds;` with no position), and
+/// so does a missing required field.
+#[test]
+fn validation_faults_name_their_field_and_line() {
+    let pretty = |v: &Value| serde_json::to_string_pretty(v).unwrap();
+    let parse_pretty = |v: &Value| parse_gltf(pretty(v).as_bytes(), "t.gltf", &dir()).err().unwrap().to_string();
+    let mut v = read_json(&dir().join("Triangle.gltf"));
+    v["nodes"][0]["children"] = json!([9]);
+    let line = pretty(&v).lines().position(|l| l.contains("\"children\"")).unwrap() + 2;
+    let e = parse_pretty(&v);
+    assert!(e.starts_with(&format!("t.gltf:{line}:")), "{e}");
+    assert!(e.ends_with("nodes[0].children[0]: invalid glTF: index out of bounds"), "{e}");
+    v["nodes"][0]["camera"] = json!(3);
+    assert!(parse_pretty(&v).ends_with("invalid glTF: index out of bounds (and 1 more)"), "{}", parse_pretty(&v));
+    let mut v = read_json(&dir().join("Triangle.gltf"));
+    v.as_object_mut().unwrap().remove("asset");
+    let lines = pretty(&v).lines().count();
+    let e = parse_pretty(&v);
+    assert!(e.starts_with(&format!("t.gltf:{lines}:1: not a valid glTF: missing field `asset`")), "{e}");
+}
+
 /// Faults gltf-json's own validator does not catch safely: a POSITION
 /// accessor index out of range (its validator indexes without a bounds
 /// check and would panic) is a named error; factors outside [0, 1] (invalid
@@ -751,9 +846,9 @@ fn accessor_layouts_outside_their_views_are_errors() {
             "accessors[0]: 4 elements of 2 bytes every 2 from byteOffset 0 run past bufferViews[0] (6 bytes)",
         ),
         (
-            "index stride 4",
-            |v| v["bufferViews"][0]["byteStride"] = json!(4),
-            "accessors[0]: 3 elements of 2 bytes every 4 from byteOffset 0 run past bufferViews[0] (6 bytes)",
+            "POSITION stride 16",
+            |v| v["bufferViews"][1]["byteStride"] = json!(16),
+            "accessors[1]: 3 elements of 12 bytes every 16 from byteOffset 0 run past bufferViews[1] (36 bytes)",
         ),
         ("POSITION count 0", |v| v["accessors"][1]["count"] = json!(0), "accessors[1]: count is 0"),
         (

@@ -259,8 +259,16 @@ impl<'a> Importer<'a> {
     fn open(bytes: &'a [u8], file: &str, dir: &Path) -> Result<Self, LoadError> {
         let text = json_text(bytes);
         let fail = |field: &str, message: String| load_error(file, text, field, message);
-        let gltf::Gltf { document, blob } =
-            gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| fail("", format!("not a valid glTF: {e}")))?;
+        let gltf::Gltf { document, blob } = gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| match e {
+            // serde_json's position, where the scene loader puts it.
+            gltf::Error::Deserialize(e) if text.is_some() => LoadError {
+                file: file.to_string(),
+                position: Some((e.line(), e.column())),
+                field: String::new(),
+                message: format!("not a valid glTF: {}", super::json::strip_position(&e.to_string())),
+            },
+            e => fail("", format!("not a valid glTF: {e}")),
+        })?;
         let json = document.into_json();
         for (i, ext) in json.extensions_required.iter().enumerate() {
             if !SUPPORTED_EXTENSIONS.contains(&ext.as_str()) {
@@ -289,7 +297,18 @@ impl<'a> Importer<'a> {
                 }
             }
         }
-        let doc = gltf::Document::from_json(json).map_err(|e| fail("", format!("invalid glTF: {e}")))?;
+        let doc = gltf::Document::from_json(json).map_err(|e| match e {
+            // The first fault the crate's validator found, at its path.
+            gltf::Error::Validation(errors) if !errors.is_empty() => {
+                let (path, error) = &errors[0];
+                let more = match errors.len() {
+                    1 => String::new(),
+                    n => format!(" (and {} more)", n - 1),
+                };
+                fail(&path.to_string(), format!("invalid glTF: {}{more}", error.to_string().to_lowercase()))
+            }
+            e => fail("", e.to_string()),
+        })?;
         let mut imp = Importer {
             file: file.to_string(),
             text,
@@ -302,6 +321,10 @@ impl<'a> Importer<'a> {
             messages: Vec::new(),
             own_camera: true,
         };
+        let version = imp.doc.as_json().asset.version.clone();
+        if !version.starts_with("2.") {
+            imp.warn("asset.version", format!("version {version} is not glTF 2.x: read as glTF 2.0"));
+        }
         let used: Vec<String> = imp.doc.extensions_used().map(str::to_string).collect();
         for ext in used {
             if !SUPPORTED_EXTENSIONS.contains(&ext.as_str()) {
@@ -430,6 +453,7 @@ impl<'a> Importer<'a> {
             if std::mem::replace(&mut reached[node.index()], true) {
                 return Err(self.fail(&label, "the node is reached twice: glTF nodes form disjoint trees"));
             }
+            self.check_node_transform(&node, &label);
             let local = Affine3A::from_mat4(Mat4::from_cols_array_2d(&node.transform().matrix()));
             let world = parent * local;
             if !world.is_finite() {
@@ -439,6 +463,25 @@ impl<'a> Importer<'a> {
             stack.extend(node.children().map(|c| (c, world)).collect::<Vec<_>>().into_iter().rev());
         }
         Ok(nodes)
+    }
+
+    /// Warns of what glTF 2.0 (5.25, "node") forbids in a node's transform
+    /// and the loader would otherwise drop without a word: TRS beside a
+    /// matrix (the matrix is used) and a matrix whose last row is not
+    /// (0, 0, 0, 1) (an affine transform is used).
+    fn check_node_transform(&mut self, node: &gltf::Node, label: &str) {
+        let json = &self.doc.as_json().nodes[node.index()];
+        let Some(m) = json.matrix else { return };
+        if json.translation.is_some() || json.rotation.is_some() || json.scale.is_some() {
+            self.warn(label, "the node has a matrix and translation, rotation or scale: the matrix is used");
+        }
+        let row = [m[3], m[7], m[11], m[15]];
+        if row != [0.0, 0.0, 0.0, 1.0] {
+            self.warn(
+                label,
+                format!("the matrix's last row {row:?} is not [0, 0, 0, 1]: dropped (an affine transform is used)"),
+            );
+        }
     }
 
     /// The triangles the nodes' meshes declare (by their accessors' counts,
@@ -461,6 +504,12 @@ impl<'a> Importer<'a> {
         let (forward, up) = (forward.as_dvec3(), up.as_dvec3());
         if Camera::frame(forward, up).is_none() {
             return Err(self.fail(label, "the camera's transform is degenerate (no view or up direction)"));
+        }
+        if self.own_camera {
+            if let Some(why) = camera_distortion(&world) {
+                let what = format!("the camera's transform {why}: rendered from its position, -z and +y alone");
+                self.warn(label, what);
+            }
         }
         let fov = yfov.to_degrees();
         if !(fov.is_finite() && fov > 0.0 && fov < 180.0) {
@@ -539,6 +588,9 @@ impl<'a> Importer<'a> {
         if node.weights().is_some() || mesh.weights().is_some() {
             self.warn(&what, "morph target weights are ignored: the base shape is rendered");
         }
+        if mesh.primitives().len() == 0 {
+            self.warn(&what, "the mesh has no primitives (glTF requires one): nothing to render");
+        }
         for prim in mesh.primitives() {
             let pwhat = format!("{what}, primitive {}", prim.index());
             self.check_primitive(&prim, &pwhat)?;
@@ -584,6 +636,15 @@ impl<'a> Importer<'a> {
         if let Some(a) = prim.indices() {
             if !layout(&a, Dimensions::Scalar, &[DataType::U8, DataType::U16, DataType::U32]) {
                 return Err(self.fail(pwhat, "indices must be SCALAR of UNSIGNED_BYTE, _SHORT or _INT"));
+            }
+            // glTF 2.0, 3.6.2.4: only vertex attributes have a stride; a
+            // reader that ignores one on indices winds other triangles.
+            if let Some(view) = a.view().filter(|v| v.stride().is_some()) {
+                let why = format!(
+                    "bufferViews[{}] of the indices has a byteStride (only vertex attributes may)",
+                    view.index()
+                );
+                return Err(self.fail(pwhat, why));
             }
         }
         if prim.attributes().any(|(s, _)| s == gltf::Semantic::Colors(0)) {
@@ -635,6 +696,10 @@ impl<'a> Importer<'a> {
                 pwhat,
                 format!("{n} vertices do not make whole triangles (mode Triangles): the last {} are ignored", n % 3),
             );
+        }
+        if matches!(prim.mode(), Mode::TriangleStrip | Mode::TriangleFan) && list.len() < 3 {
+            let why = format!("{} vertices make no triangle (mode {:?})", list.len(), prim.mode());
+            self.warn(pwhat, why);
         }
         if let Some(i) = list.iter().find(|&&i| i as usize >= positions.len()) {
             return Err(self.fail(pwhat, format!("index {i} is out of range ({} positions)", positions.len())));
@@ -785,6 +850,13 @@ impl<'a> Importer<'a> {
             return Ok((s.max_value() > 0.0).then_some((s, m.double_sided())));
         }
         let strength = m.emissive_strength().unwrap_or(1.0);
+        if m.emissive_factor().iter().any(|&c| c > 1.0) {
+            let why = format!(
+                "emissiveFactor {:?} is above 1 (invalid glTF; KHR_materials_emissive_strength is the valid way): used as given",
+                m.emissive_factor()
+            );
+            self.warn(label, why);
+        }
         let mut rgb = m.emissive_factor().map(|c| c * strength);
         if rgb.iter().any(|c| !c.is_finite() || *c < 0.0) {
             return Err(self.fail(label, "emissiveFactor x emissiveStrength must be finite and >= 0"));
@@ -1131,6 +1203,23 @@ fn percent_decode(s: &str) -> String {
         i += 1;
     }
     String::from_utf8_lossy(&out).into_owned()
+}
+
+/// What a camera node's world transform does to the image beyond placing
+/// the camera, which prism's pinhole (position, view -z, up +y; right =
+/// view x up) cannot show: a mirror (glTF 3.10.1 puts the local +x to the
+/// right, so a rasteriser's view, the inverse of this transform, flips the
+/// image) or a scale that is not the same on every axis (it stretches the
+/// image). A uniform scale changes nothing after the perspective divide.
+fn camera_distortion(world: &Affine3A) -> Option<&'static str> {
+    let m = world.matrix3.as_dmat3();
+    if m.determinant() < 0.0 {
+        return Some("mirrors (its determinant is negative)");
+    }
+    let g = m.transpose() * m;
+    let s2 = (g.x_axis.x + g.y_axis.y + g.z_axis.z) / 3.0;
+    let off = (g - glam::DMat3::from_diagonal(glam::DVec3::splat(s2))).to_cols_array();
+    (off.iter().any(|e| e.abs() > 1e-4 * s2)).then_some("scales unevenly or shears")
 }
 
 #[cfg(test)]

@@ -1156,7 +1156,7 @@ fn include_gltf(
 }
 
 /// serde_json appends " at line L column C"; we print the position up front.
-fn strip_position(msg: &str) -> String {
+pub(super) fn strip_position(msg: &str) -> String {
     match msg.rfind(" at line ") {
         Some(i) => msg[..i].to_string(),
         None => msg.to_string(),
