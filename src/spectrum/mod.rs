@@ -240,5 +240,8 @@ mod tests {
         assert_eq!(s.eval(370.0), 1.0);
         assert_eq!(s.eval(800.0), 3.0);
         assert!(Spectrum::piecewise_linear(&[(400.0, 2.0)]).is_constant());
+        // A flat table stays a constant (dispersion is detected by it),
+        // its knots inside bins included.
+        assert!(Spectrum::piecewise_linear(&[(400.3, 1.5), (512.7, 1.5), (700.0, 1.5)]).is_constant());
     }
 }
