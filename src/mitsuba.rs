@@ -279,8 +279,9 @@ fn shape_xml(xml: &mut String, scene: &Scene, g: &Group, file: &str) {
     let _ = writeln!(xml, "  </shape>");
 }
 
-/// `"360:v, 361:v, ..., 830:v"`: the spectrum at every integer nanometre of
-/// prism's range (a constant as its two end points); `"0"` if it is zero
+/// `"360:v, 361:v, ..., 830:v"`: prism's 1 nm table at every integer
+/// nanometre of its range (a tabulated spectrum's means over each
+/// nanometre; a constant as its two end points); `"0"` if it is zero
 /// over all of them, which Mitsuba refuses as an irregular spectrum (it has
 /// no mass to sample).
 pub fn spectrum_list(s: &Spectrum) -> String {

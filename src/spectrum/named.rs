@@ -3,8 +3,10 @@
 //!
 //! Data (see each JSON file's `_source`): metal (eta, k) and Schott glass IOR
 //! tables and the CIE illuminants, all as carried in pbrt-v4
-//! (src/pbrt/util/spectrum.cpp). Tables are interpolated linearly between
-//! their samples onto the 1 nm grid, like pbrt-v4's `PiecewiseLinearSpectrum`.
+//! (src/pbrt/util/spectrum.cpp). Tables are linear between their samples,
+//! like pbrt-v4's `PiecewiseLinearSpectrum`: the metals' and glasses' 1 nm
+//! grids hold their means over each nanometre (`Spectrum::piecewise_linear`),
+//! the illuminants CIE's values at each whole nanometre.
 
 use super::{cie, piecewise_linear_at, Spectrum};
 use serde::Deserialize;
@@ -45,7 +47,7 @@ impl Table {
     fn zero_outside(&self, what: &str) -> Spectrum {
         let p = self.points(what);
         let (lo, hi) = (p[0].0, p[p.len() - 1].0);
-        Spectrum::from_fn(|l| if (lo..=hi).contains(&l) { piecewise_linear_at(&p, l) } else { 0.0 })
+        Spectrum::from_fn(|l| if (lo..=hi).contains(&l) { piecewise_linear_at(&p, l as f64) as f32 } else { 0.0 })
     }
 }
 
