@@ -352,7 +352,7 @@ pub fn init_mis(scene: &Scene, path: &mut [Vertex], subpath: Subpath, h: MisHeur
     }
 }
 
-/// The reverse densities at and next to the connection (Veach §10.3.4), in
+/// The reverse densities at and next to the connection, in
 /// area measure: of the connection vertices pt = z_{t-1}, qs = y_{s-1} and
 /// their predecessors being made by the other subpath's walk. pbrt-v3
 /// `MISWeight` substitutes them with scoped assignments.
@@ -407,8 +407,10 @@ impl End {
     }
 
     /// S_L or S_C of `init_mis` (Georgiev et al. tech. rep. eqs. (40)-(41)
-    /// in ratio form) from the ratios R at the connection vertex (`r`) and
-    /// at its predecessor (`r_prev`).
+    /// in ratio form, for vertex connection; the same sums serve emitter
+    /// hits, next-event estimation and light tracing, eqs. (42)-(47)) from
+    /// the ratios R at the connection vertex (`r`) and at its predecessor
+    /// (`r_prev`).
     #[inline]
     fn sum(&self, r: f32, r_prev: f32) -> f32 {
         // Both terms are computed and the zero cases selected: whether d_vc

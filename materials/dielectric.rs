@@ -12,7 +12,7 @@
 //!   sampling of `microfacet`. The design follows pbrt-v4's `DielectricBxDF`
 //!   (§9.7): a visible normal is drawn, then reflection or refraction about it
 //!   with probability R(wo.wm) or T(wo.wm); microfacets back-facing wo or wi
-//!   are discarded (Walter §5.3).
+//!   are discarded (the chi+ factors of Walter's G1; pbrt-v4's test).
 //! - `eta` is the IOR of the inside (the side the normal points away from)
 //!   relative to the outside; wo inside means the relative index is 1/eta.
 //! - Transport mode (Veach 1997 §5.2): in `Radiance` mode transmission is
@@ -181,8 +181,8 @@ impl Dielectric {
     }
 
     /// Delta reflection with probability R, delta refraction with T = 1 - R
-    /// (pbrt-v4 §9.5.2): each sample's weight f |cos| / pdf is 1, times
-    /// 1/eta'^2 for radiance-mode transmission.
+    /// (pbrt-v4 §9.5): each sample's weight f |cos| / pdf is 1, times
+    /// 1/eta'^2 for radiance-mode transmission (§9.5.2).
     fn sample_smooth(&self, wo: Vec3A, uc: f32, eta: f32, mode: TransportMode) -> Option<BsdfSample> {
         let r = fr_dielectric(wo.z, eta);
         if uc < r {
@@ -271,8 +271,10 @@ fn half_vector(wo: Vec3A, wi: Vec3A, eta: f32) -> Option<HalfVector> {
     Some(HalfVector { wm, etap, reflect })
 }
 
-/// Veach 1997 §5.2: radiance is compressed by eta'^2 when it crosses into a
-/// denser medium; importance is not.
+/// Veach 1997 §5.2: light entering a medium of index eta_t from eta_i has its
+/// radiance multiplied by (eta_t / eta_i)^2. Here light flows from wi's side
+/// to wo's, against the path, so radiance mode takes 1/eta'^2 (eta' = the
+/// index on wi's side over wo's); the adjoint, importance, takes none.
 #[inline]
 fn radiance_scale(mode: TransportMode, etap: f32) -> f32 {
     match mode {

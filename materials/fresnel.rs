@@ -5,7 +5,7 @@
 //! microfacet BSDFs share these functions so that each law is written once.
 //!
 //! - `fr_dielectric`: exact unpolarised reflectance between two dielectrics
-//!   (Born & Wolf, "Principles of Optics", §1.5.2; pbrt-v4 §9.3.2 `FrDielectric`);
+//!   (Born & Wolf, "Principles of Optics", §1.5.2; pbrt-v4 §9.3.5 `FrDielectric`);
 //!   `fr_dielectric_refracted` the same for a refraction whose transmitted
 //!   cosine is known, which is exact near the critical angle.
 //! - `fr_conductor`: exact unpolarised reflectance of a conductor with complex

@@ -41,7 +41,9 @@ pub fn roughness_to_alpha(roughness: f32) -> f32 {
 /// |dwm/dwi| of the generalised half vector wm ~ wo + etap wi of a refraction
 /// (Walter et al. 2007 eq. 17, divided through by eta_i^2 as in pbrt-v4):
 /// |wi.wm| / (wi.wm + wo.wm / etap)^2, where etap = eta_i / eta_o is the index
-/// on wi's side over the index on wo's side. 0 where it degenerates.
+/// on wi's side over the index on wo's side. 0 where it degenerates. Walter
+/// names the directions the other way round: his i is our wo, and his o, the
+/// sampled direction, is our wi.
 #[inline]
 pub fn refraction_jacobian(wo: Vec3A, wi: Vec3A, wm: Vec3A, etap: f32) -> f32 {
     let s = wi.dot(wm) + wo.dot(wm) / etap;

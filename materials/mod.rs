@@ -194,7 +194,7 @@ impl Bsdf {
 
     /// f(wo, wi) with the density of sampling wi from wo and, in the adjoint
     /// mode, of sampling wo from wi: what a BDPT connection needs at each end
-    /// (Veach §10.3.4; SmallVCM `BSDF::Evaluate` returns the same three).
+    /// (SmallVCM `BSDF::Evaluate` returns the same three).
     #[inline]
     pub fn eval_with_pdfs(&self, wo: Vec3A, wi: Vec3A, lambda: &SampledWavelengths, mode: TransportMode) -> BsdfEval {
         match self {

@@ -3,8 +3,8 @@
 //! BDPT need.
 //!
 //! The image rectangle lies on the plane at distance 1 in front of the
-//! pinhole; A is its area. Following Veach 1997 §10.8 and pbrt's
-//! PerspectiveCamera, the importance of a direction at angle theta to the
+//! pinhole; A is its area. Following pbrt-v3 §16.1.1 ("Sampling
+//! Cameras", `PerspectiveCamera::We`), the importance of a direction at angle theta to the
 //! optical axis is We = 1 / (A cos^4 theta) inside the frame, normalised so
 //! that the integral of We cos theta over the image's solid angle is 1. A
 //! pixel's measurement (its box-filtered radiance) is We scaled by the

@@ -10,8 +10,11 @@
 //! pinhole; strategy (s, t) joins y_{s-1} to z_{t-1}. Every vertex keeps
 //! - `beta`: the subpath throughput up to and including the vertex, i.e.
 //!   Veach's alpha_i (eq. 10.6) = product of (f |cos| / pdf) along the walk;
-//!   for a light origin it is Le^(0) / P_A (emitted radiance over the
-//!   density of choosing the light and the point on it);
+//!   for a light origin it is L_e / P_A (the emitted radiance over the
+//!   density of choosing the light and the point on it): every prism emitter
+//!   radiates one radiance in every direction it emits, so Veach's split
+//!   Le = Le^(0) Le^(1) (eq. 8.7) is kept whole in beta and the origin's
+//!   directional factor (`Vertex::scatter`) is 1, or 0 behind it;
 //! - `pdf_fwd`: the density with which its own subpath generated it, and
 //!   `pdf_rev`: the density with which the OTHER subpath would have generated
 //!   it (the walk in the reverse direction), both in AREA measure (Veach
@@ -138,8 +141,9 @@ pub struct Segment {
 #[derive(Clone, Copy, Debug)]
 pub struct Scatter {
     /// The BSDF (importance mode: times Veach's eq. 5.19 correction), or for
-    /// a light origin the directional part of emission Le^(1) (Veach eq.
-    /// 8.7); zero at the camera and at infinity.
+    /// a light origin its directional factor: 1 where it emits, 0 behind a
+    /// one-sided emitter (the radiance itself is in the origin's `beta`);
+    /// zero at the camera and at infinity.
     pub f: SampledSpectrum,
     /// Density of the vertex's walk choosing the direction: solid angle, or
     /// planar from the environment (pbrt `Vertex::Pdf` before conversion).
@@ -268,7 +272,7 @@ impl Vertex {
     /// Scattering at this vertex towards the unit direction `wi`: f and both
     /// densities from one BSDF evaluation (SmallVCM `BSDF::Evaluate`), `wo`
     /// being the direction the walk arrived along. A light origin gives
-    /// Le^(1) and its emission density, the pinhole its directional
+    /// its directional factor (1 or 0) and its emission density, the pinhole its directional
     /// importance density, a vertex at infinity the planar density of its
     /// emitted rays (pbrt `Vertex::f`, `Vertex::Pdf`, `PdfLight`). Always
     /// inlined, as the profile-guided build chose (docs/performance-log.md,

@@ -124,7 +124,10 @@ impl Mul<SampledSpectrum> for f32 {
 /// tabulated in `VisibleTable`; the three others are rotated by equal steps
 /// of 1/4 in the pdf's primary sample space (u_i = u + i/4 mod 1), so each
 /// wavelength is marginally distributed by the table's pdf and the plain
-/// average of L(l_i)/p(l_i) is unbiased (Wilkie et al. 2014).
+/// average of L(l_i)/p(l_i) is unbiased. The hero idea is Wilkie et al.
+/// 2014's, who space the wavelengths evenly in nm and combine them by MIS;
+/// the rotation in sample space and the plain average are pbrt-v4's
+/// (`SampleVisibleWavelengths`, `TerminateSecondary`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SampledWavelengths {
     /// The wavelengths (nm). Only `sample_visible` sets them, as `dense`
