@@ -219,16 +219,26 @@ fn out_of_range_factors_are_clamped_before_the_texture_mean() {
 }
 
 #[test]
-fn primitive_modes_points_and_lines_are_errors_triangle_modes_render() {
-    let path = dir().join("MeshPrimitiveModes.gltf");
-    let e = load_gltf(&path).err().expect("points must be refused").to_string();
-    assert!(e.contains("nodes[0] (meshes[0] \"mesh with POINTS\"), primitive 0: mode Points is not supported"), "{e}");
-    // Without the point and line meshes: TRIANGLES, TRIANGLE_STRIP and
-    // TRIANGLE_FAN each cover the same hexagon (radius 1, at x = -2, 0, 2;
-    // y = -3), wound counter-clockwise as seen from +z.
-    let mut v = read_json(&path);
-    v["scenes"][0]["nodes"] = json!([4, 5, 6]);
-    let scene = parse(&v, "MeshPrimitiveModes (triangles)").unwrap().builder.build();
+fn primitive_modes_points_and_lines_are_skipped_triangle_modes_render() {
+    // Points and lines have no area, so a path tracer's image has none of
+    // them: each is skipped with a warning, and the surfaces render.
+    let g = load("MeshPrimitiveModes.gltf");
+    for (node, mode) in [(0, "POINTS"), (1, "LINES"), (2, "LINE_LOOP"), (3, "LINE_STRIP")] {
+        let pascal = match mode {
+            "POINTS" => "Points",
+            "LINES" => "Lines",
+            "LINE_LOOP" => "LineLoop",
+            _ => "LineStrip",
+        };
+        let expected = format!(
+            "nodes[{node}] (meshes[{node}] \"mesh with {mode}\"), primitive 0: mode {pascal} has no area: skipped"
+        );
+        assert!(has(&g.messages, &expected), "no {expected:?} in {:#?}", g.messages);
+    }
+    // TRIANGLES, TRIANGLE_STRIP and TRIANGLE_FAN each cover the same hexagon
+    // (radius 1, at x = -2, 0, 2; y = -3), wound counter-clockwise as seen
+    // from +z.
+    let scene = g.builder.build();
     assert_eq!(scene.triangle_count(), 6 + 4 + 6);
     for cx in [-2.0f32, 0.0, 2.0] {
         for k in 0..12 {
@@ -248,6 +258,8 @@ fn unsupported_features_are_named_errors() {
     v["extensions"]["KHR_lights_punctual"]["lights"][1]["type"] = json!("directional");
     let e = parse(&v, "LightsPoint (directional)").err().unwrap();
     assert!(e.contains("nodes[2] \"PointLightGreen\": directional light \"PointLightGreen\" is not supported"), "{e}");
+    // Including the file in a JSON scene would not help: it names the file.
+    assert!(e.contains("remove it from the file"), "{e}");
 
     let mut v = read_json(&dir().join("Triangle.gltf"));
     v["extensionsUsed"] = json!(["KHR_draco_mesh_compression"]);
@@ -366,6 +378,53 @@ fn unsupported_features_are_named_errors() {
 /// node is the child of two parents or a root and a child). A node reached
 /// twice is an error that names it: walked as given, a chain of nodes each
 /// listing its child twice is a walk of 2^depth nodes (it hung the loader).
+/// What the loader reads past, ignores or skips, it says, with the effect
+/// (a Khronos sample-model audit, session 42).
+#[test]
+fn what_is_passed_over_is_said() {
+    let triangle = read_json(&dir().join("Triangle.gltf"));
+    let messages = |v: &Value, name: &str| parse(v, name).unwrap_or_else(|e| panic!("{e}")).messages;
+
+    // A byte-order mark (glTF forbids writers one; readers may skip it).
+    let bytes = [b"\xEF\xBB\xBF".as_slice(), triangle.to_string().as_bytes()].concat();
+    let g = parse_gltf(&bytes, "Triangle (BOM)", &dir()).unwrap_or_else(|e| panic!("{e}"));
+    assert!(has(&g.messages, "UTF-8 byte-order mark"), "{:?}", g.messages);
+    assert_eq!(g.builder.build().triangle_count(), 1);
+
+    // A .gltf buffer without a uri (only a .glb's first may omit it).
+    let mut v = triangle.clone();
+    v["buffers"][0].as_object_mut().unwrap().remove("uri");
+    let e = parse(&v, "Triangle (no uri)").err().unwrap();
+    assert!(e.contains("buffers[0]: has no uri"), "{e}");
+
+    // Extensions whose absence prism's rendering does not mean.
+    let mut v = triangle.clone();
+    v["extensionsUsed"] = json!(["KHR_materials_volume", "KHR_materials_pbrSpecularGlossiness"]);
+    let m = messages(&v, "Triangle (extensions)");
+    assert!(has(&m, "KHR_materials_volume is ignored (transmissive meshes are solid volumes"), "{m:?}");
+    assert!(has(&m, "KHR_materials_pbrSpecularGlossiness is ignored (its materials take their metallic"), "{m:?}");
+
+    // A skin: the mesh stays where its node puts it, which glTF does not.
+    let mut v = triangle.clone();
+    v["nodes"] = json!([{"mesh": 0, "skin": 0}, {}]);
+    v["skins"] = json!([{"joints": [1]}]);
+    let m = messages(&v, "Triangle (skin)");
+    assert!(has(&m, "nodes[0]: skinning is ignored: the mesh is placed by its node's transform"), "{m:?}");
+
+    // Animations, and a scene with nothing to render.
+    let mut v = triangle.clone();
+    v["animations"] = json!([{
+        "channels": [{"sampler": 0, "target": {"node": 0, "path": "translation"}}],
+        "samplers": [{"input": 0, "output": 1}]
+    }]);
+    let m = messages(&v, "Triangle (animated)");
+    assert!(has(&m, "animations: 1 animation(s) ignored: the static pose is rendered"), "{m:?}");
+    assert!(!has(&m, "no surfaces"), "{m:?}");
+    v["scenes"][0]["nodes"] = json!([]);
+    let m = messages(&v, "Triangle (empty scene)");
+    assert!(has(&m, "scenes: the scene has no surfaces to render"), "{m:?}");
+}
+
 #[test]
 fn a_node_reached_twice_is_an_error() {
     let v = read_json(&dir().join("Triangle.gltf"));

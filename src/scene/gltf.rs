@@ -18,10 +18,12 @@
 //!
 //! Textures are averaged (colours sRGB-decoded per texel first): the BSDFs
 //! have no texture lookup, so a textured material renders with its mean and
-//! the loader says so. Nothing is dropped silently: what prism cannot
-//! represent is an error naming the node or material (points and lines,
-//! directional lights, sparse accessors, unsupported required extensions)
-//! or a warning.
+//! the loader says so. What prism cannot represent is an error naming the
+//! node or material (directional lights, sparse accessors, unsupported
+//! required extensions) or a warning (points and lines, which have no area,
+//! are skipped with one). Only what a path tracer has no use for passes
+//! without a word: occlusion textures (it computes occlusion) and cameras'
+//! clip planes; animations get a note.
 //!
 //! A material's `extras` may carry measured spectra that RGB cannot:
 //! `"extras": {"prism": {"reflectance": S, "emission": S}}` with
@@ -224,6 +226,24 @@ struct Importer<'a> {
     own_camera: bool,
 }
 
+/// What rendering without an extension the loader does not read means,
+/// for its warning.
+fn ignored_extension_effect(ext: &str) -> &'static str {
+    match ext {
+        // The volume extension declares meshes closed volumes, which prism
+        // assumes of every transmissive material already.
+        "KHR_materials_volume" => "transmissive meshes are solid volumes in prism anyway; the attenuation is not read",
+        "KHR_materials_pbrSpecularGlossiness" => {
+            "its materials take their metallic-roughness values, by default a rough white metal"
+        }
+        _ => "rendered as if it were absent",
+    }
+}
+
+/// A UTF-8 byte-order mark, which glTF 2.0 forbids writers to emit and
+/// allows readers to ignore.
+const UTF8_BOM: &[u8] = b"\xEF\xBB\xBF";
+
 /// The text of a `.gltf` file, where its errors are located (a `.glb`
 /// frames its JSON in binary chunks: its errors have no line).
 fn json_text(bytes: &[u8]) -> Option<&str> {
@@ -257,6 +277,8 @@ fn label_path(label: &str) -> Option<Vec<Seg>> {
 
 impl<'a> Importer<'a> {
     fn open(bytes: &'a [u8], file: &str, dir: &Path) -> Result<Self, LoadError> {
+        let bom = bytes.starts_with(UTF8_BOM);
+        let bytes = bytes.strip_prefix(UTF8_BOM).unwrap_or(bytes);
         let text = json_text(bytes);
         let fail = |field: &str, message: String| load_error(file, text, field, message);
         let gltf::Gltf { document, blob } = gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| match e {
@@ -321,6 +343,9 @@ impl<'a> Importer<'a> {
             messages: Vec::new(),
             own_camera: true,
         };
+        if bom {
+            imp.warn("", "the file opens with a UTF-8 byte-order mark, which glTF writers must not emit: skipped");
+        }
         let version = imp.doc.as_json().asset.version.clone();
         if !version.starts_with("2.") {
             imp.warn("asset.version", format!("version {version} is not glTF 2.x: read as glTF 2.0"));
@@ -328,7 +353,7 @@ impl<'a> Importer<'a> {
         let used: Vec<String> = imp.doc.extensions_used().map(str::to_string).collect();
         for ext in used {
             if !SUPPORTED_EXTENSIONS.contains(&ext.as_str()) {
-                imp.warn("", format!("extension {ext} is ignored (rendered as if it were absent)"));
+                imp.warn("", format!("extension {ext} is ignored ({})", ignored_extension_effect(&ext)));
             }
         }
         let mut blob = blob;
@@ -337,7 +362,11 @@ impl<'a> Importer<'a> {
             let what = format!("buffers[{}]", buffer.index());
             let mut data = match buffer.source() {
                 gltf::buffer::Source::Bin => {
-                    blob.take().ok_or_else(|| imp.fail(&what, "the GLB has no binary chunk"))?
+                    let why = match imp.text {
+                        Some(_) => "has no uri (only a .glb's first buffer may omit it)",
+                        None => "the GLB has no binary chunk",
+                    };
+                    blob.take().ok_or_else(|| imp.fail(&what, why))?
                 }
                 gltf::buffer::Source::Uri(uri) => imp.read_uri(uri).map_err(|m| imp.fail(&what, m))?,
             };
@@ -401,7 +430,11 @@ impl<'a> Importer<'a> {
                 self.import_mesh(&node, &mesh, world, &label, &mut content)?;
             }
             if node.skin().is_some() {
-                self.warn(&label, "skinning is ignored: the mesh renders in its bind pose");
+                self.warn(
+                    &label,
+                    "skinning is ignored: the mesh is placed by its node's transform in its stored shape (glTF places \
+                     a skinned mesh by its joints alone; the two agree when the skeleton rests in its bind pose)",
+                );
             }
             if let Some(camera) = node.camera() {
                 cameras += 1;
@@ -424,6 +457,13 @@ impl<'a> Importer<'a> {
         }
         if cameras > 1 && content.camera.is_some() && self.own_camera {
             self.note("cameras", format!("{} other camera node(s) not used", cameras - 1));
+        }
+        if content.meshes.is_empty() {
+            self.warn("scenes", "the scene has no surfaces to render");
+        }
+        let animations = doc.animations().count();
+        if animations > 0 {
+            self.note("animations", format!("{animations} animation(s) ignored: the static pose is rendered"));
         }
         Ok(content)
     }
@@ -554,7 +594,7 @@ impl<'a> Importer<'a> {
                     label,
                     format!(
                         "directional light \"{name}\" is not supported: prism has no directional light (remove \
-                         it, or include the file in a JSON scene with an environment light)"
+                         it from the file; a JSON scene that includes the file can light it with an environment)"
                     ),
                 ));
             }
@@ -593,6 +633,11 @@ impl<'a> Importer<'a> {
         }
         for prim in mesh.primitives() {
             let pwhat = format!("{what}, primitive {}", prim.index());
+            if !matches!(prim.mode(), Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
+                let why = format!("mode {:?} has no area: skipped (prism renders surfaces)", prim.mode());
+                self.warn(&pwhat, why);
+                continue;
+            }
             self.check_primitive(&prim, &pwhat)?;
             let mut m = self.read_primitive(&prim, &pwhat)?;
             m.transform(world);
@@ -606,19 +651,9 @@ impl<'a> Importer<'a> {
         Ok(())
     }
 
-    /// A primitive's mode and accessor layouts: surfaces only, and the
-    /// layouts the crate's readers assume (they panic or misread otherwise).
+    /// A surface primitive's accessor layouts: those the crate's readers
+    /// assume (they panic or misread otherwise).
     fn check_primitive(&mut self, prim: &gltf::Primitive, pwhat: &str) -> Result<(), LoadError> {
-        let mode = prim.mode();
-        if !matches!(mode, Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
-            return Err(self.fail(
-                pwhat,
-                format!(
-                    "mode {mode:?} is not supported: prism renders surfaces only (Triangles, TriangleStrip, \
-                     TriangleFan)"
-                ),
-            ));
-        }
         use gltf::accessor::{DataType, Dimensions};
         let layout = |a: &gltf::Accessor, dims: Dimensions, types: &[DataType]| {
             a.dimensions() == dims && types.contains(&a.data_type())
