@@ -350,7 +350,7 @@ impl Outputs {
         let scale = 2f32.powf(exposure);
         let mut buf = image::RgbImage::new(width, height);
         for (i, p) in image.iter().enumerate() {
-            let px = p.map(|c| (srgb_encode(c * scale) * 255.0 + 0.5) as u8);
+            let px = p.map(|c| srgb8(c * scale));
             buf.put_pixel(i as u32 % width, i as u32 / width, image::Rgb(px));
         }
         self.bytes(path, &encode_png(&image::DynamicImage::ImageRgb8(buf))?)
@@ -451,6 +451,22 @@ pub fn ensure_finite(path: &Path, width: u32, pixels: &[[f32; 3]]) -> Result<()>
 /// Reads an RGB EXR into (width, height, pixels).
 pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<[f32; 3]>)> {
     use exr::prelude::*;
+    // The crate allocates the pixels its header claims before it reads
+    // them: a header that claims more than prism renders is refused first
+    // (a hostile 99999^2 header aborted on a 120 GB allocation).
+    let meta = exr::meta::MetaData::read_from_file(path, false)
+        .map_err(|e| anyhow::anyhow!("cannot read {}: {e}", path.display()))?;
+    for header in &meta.headers {
+        let size = header.layer_size;
+        anyhow::ensure!(
+            size.area() as u64 <= crate::camera::MAX_PIXELS,
+            "cannot read {}: its header claims {}x{} pixels, more than prism renders ({} pixels)",
+            path.display(),
+            size.width(),
+            size.height(),
+            crate::camera::MAX_PIXELS
+        );
+    }
     let img = read_first_rgba_layer_from_file(
         path,
         |res, _| (res.width(), vec![[0f32; 3]; res.width() * res.height()]),
@@ -465,8 +481,14 @@ pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<[f32; 3]>)> {
     Ok((size.width() as u32, size.height() as u32, px))
 }
 
+/// A linear value as an 8-bit sRGB code, clamped to [0, 1] first (NaN to 0;
+/// a value an exposure scaled to infinity is white).
+pub(crate) fn srgb8(c: f32) -> u8 {
+    (srgb_encode(c) * 255.0 + 0.5) as u8
+}
+
 fn srgb_encode(c: f32) -> f32 {
-    let c = if c.is_finite() { c.clamp(0.0, 1.0) } else { 0.0 };
+    let c = if c.is_nan() { 0.0 } else { c.clamp(0.0, 1.0) };
     if c <= 0.003_130_8 {
         12.92 * c
     } else {
@@ -502,6 +524,44 @@ mod tests {
         }
         assert_eq!(read_exr(&path).unwrap(), (w, h, image));
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// An EXR whose header claims a huge image (and carries no chunk count,
+    /// which the OpenEXR library omits for one part) is refused by name
+    /// before its pixels are allocated; without the check the exr crate
+    /// aborted the process on a 120 GB allocation (an audit, session 42).
+    #[test]
+    fn an_exr_header_past_the_pixel_limit_is_refused() {
+        let dir = std::env::temp_dir().join(format!("prism-exr-huge-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("huge.exr");
+        write_exr(&path, 16, 16, &[[0.5; 3]; 256]).unwrap();
+        let mut bytes = std::fs::read(&path).unwrap();
+        // Drop the chunkCount attribute (name, type, size 4, value).
+        let at = |b: &[u8], name: &[u8]| b.windows(name.len()).position(|w| w == name).unwrap();
+        let chunk = at(&bytes, b"chunkCount\0int\0");
+        bytes.drain(chunk..chunk + 23);
+        for name in [b"dataWindow\0box2i\0".as_slice(), b"displayWindow\0box2i\0"] {
+            let box2i = at(&bytes, name) + name.len() + 4;
+            for (k, v) in [0i32, 0, 99_999, 99_999].iter().enumerate() {
+                bytes[box2i + 4 * k..box2i + 4 * k + 4].copy_from_slice(&v.to_le_bytes());
+            }
+        }
+        std::fs::write(&path, &bytes).unwrap();
+        let e = read_exr(&path).unwrap_err().to_string();
+        assert!(e.contains("huge.exr: its header claims 100000x100000 pixels"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// The preview's 8-bit code: clamped, with a value an exposure carried
+    /// to infinity white and NaN black.
+    #[test]
+    fn srgb8_clamps_infinity_to_white() {
+        assert_eq!(srgb8(f32::INFINITY), 255);
+        assert_eq!(srgb8(1.0 * 2f32.powi(127) * 4.0), 255);
+        assert_eq!(srgb8(f32::NAN), 0);
+        assert_eq!(srgb8(f32::NEG_INFINITY), 0);
+        assert_eq!(srgb8(0.5), 188);
     }
 
     /// A set of outputs whose last write fails, one of whose targets is a

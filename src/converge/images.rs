@@ -2,6 +2,7 @@
 //! false-colour per-pixel errors, composed side by side with captions.
 
 use super::chart::{svg_to_png, xml_escape};
+use crate::film::srgb8;
 use anyhow::{Context, Result};
 use image::{Rgb, RgbImage};
 
@@ -15,12 +16,6 @@ pub(super) fn auto_exposure(reference: &[[f32; 3]]) -> f32 {
     } else {
         1.0
     }
-}
-
-fn srgb8(c: f32) -> u8 {
-    let c = if c.is_finite() { c.clamp(0.0, 1.0) } else { 0.0 };
-    let v = if c <= 0.003_130_8 { 12.92 * c } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 };
-    (v * 255.0 + 0.5) as u8
 }
 
 pub(super) fn tonemap(image: &[[f32; 3]], w: u32, h: u32, scale: f32) -> RgbImage {
