@@ -13,7 +13,7 @@ use prism::render::{
     check_threads, is_strategy_image, render_chunked, render_with_strategies, RenderOptions, RenderStats,
     StrategyImages,
 };
-use prism::render_state::{fnv1a, Identity, Provenance, RenderState};
+use prism::render_state::{Identity, Provenance, RenderState, SceneFile};
 use prism::scene::{load_scene, RenderDefaults, Scene};
 use prism::stats::{check_pass_memory, pixel_mean_variance, render_pass_films};
 use serde::Serialize;
@@ -327,11 +327,11 @@ fn reference_command(a: ReferenceArgs) -> Result<()> {
         &[("the scene", &a.scene)],
         &[("--out", &a.out), ("its sidecar", &a.out.with_extension("json"))],
     )?;
+    let file = SceneFile::read(&a.scene)?;
     let scene = builder.build();
-    let name = a.scene.display().to_string();
     let (image, meta) = prism::reference::make_reference(
         &scene,
-        &name,
+        &file,
         integrator.as_ref(),
         &a.integrator,
         &options,
@@ -391,6 +391,8 @@ fn compare_command(image: &Path, reference: &Path) -> Result<()> {
 /// with binary data.
 fn rgb_table(res: usize, out: &Path) -> Result<()> {
     film::ensure_extension("--out", out, "bin")?;
+    // Before the minutes of fitting, not after.
+    check_new_outputs(&[], &[("--out", out)])?;
     prism::spectrum::RgbToSpectrumTable::generate(res).write(out)
 }
 
@@ -435,11 +437,11 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
         builder.set_resolution(w, h).map_err(|e| anyhow!("--width, --height: {e}"))?;
     }
     check_render_outputs(a)?;
-    let scene_bytes = std::fs::read(&a.scene).with_context(|| format!("cannot read {}", a.scene.display()))?;
+    let file = SceneFile::read(&a.scene)?;
     let scene = builder.build();
     let identity = Identity {
-        scene: a.scene.display().to_string(),
-        scene_hash: format!("{:016x}", fnv1a(&scene_bytes)),
+        scene: file.name,
+        scene_hash: file.hash,
         integrator: name,
         seed,
         width: scene.camera.width,

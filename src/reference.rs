@@ -8,6 +8,7 @@
 use crate::film::{read_exr, DroppedSamples, Film, Outputs};
 use crate::integrators::{effective_mis, Integrator, IntegratorOptions};
 use crate::render::RenderOptions;
+use crate::render_state::SceneFile;
 use crate::scene::Scene;
 use crate::stats::{luminance, pixel_mean_variance, reference_noise, render_pass_films, BlockStats, ColourStats};
 use anyhow::{ensure, Context, Result};
@@ -19,6 +20,10 @@ use std::time::Instant;
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct ReferenceMeta {
     pub scene: String,
+    /// FNV-1a 64 of the scene file's bytes, in hex (`SceneFile`); None in
+    /// references made before it was recorded.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scene_hash: Option<String>,
     pub integrator: String,
     /// The path depth it rendered with; None in references made before it
     /// was recorded: `prism reference` then used the default depth, but
@@ -95,7 +100,7 @@ impl ReferenceMeta {
 #[allow(clippy::too_many_arguments)]
 pub fn make_reference(
     scene: &Scene,
-    scene_name: &str,
+    file: &SceneFile,
     integrator: &dyn Integrator,
     integrator_name: &str,
     options: &IntegratorOptions,
@@ -116,7 +121,8 @@ pub fn make_reference(
     let stats = ColourStats::from_passes(&images, w, h, block);
     let (mean, variance) = pixel_mean_variance(&images);
     let meta = ReferenceMeta {
-        scene: scene_name.to_string(),
+        scene: file.name.clone(),
+        scene_hash: Some(file.hash.clone()),
         integrator: integrator_name.to_string(),
         max_depth: Some(options.max_depth),
         mis: Some(effective_mis(integrator_name, options.mis).name().to_string()),

@@ -604,6 +604,9 @@ fn small_subcommands_refuse_before_writing() {
     let scene = write(&d, "kept.json", "{}");
     fails_with(&["rgb-table", "--res", "3", "--out", &scene], "--out must name a .bin file, got");
     assert_eq!(std::fs::read_to_string(&scene).unwrap(), "{}", "rgb-table replaced a scene");
+    // Checked before the fitting (minutes at --res 256), by the message
+    // every other command gives.
+    fails_with(&["rgb-table", "--res", "3", "--out", &path("nodir/t.bin")], "nodir does not exist");
     // A reference image beside a part's state would leave it stale.
     std::fs::write(d.join("r.state"), b"a part").unwrap();
     let out = path("r.exr");

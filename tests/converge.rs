@@ -460,6 +460,68 @@ fn a_rendered_reference_is_accepted() {
     std::fs::remove_dir_all(&d).unwrap();
 }
 
+/// Checks of a reference's origin that an audit found missing (session
+/// 42): another scene's content under the same file name (noted: render and
+/// reference sidecars record the scene's hash), pass seeds that wrap past
+/// 2^64 - 1 onto the run's (refused, as any shared seed is), and a
+/// variance image that is not a variance (refused, naming it).
+#[test]
+fn a_reference_from_elsewhere_is_named() {
+    let d = temp_dir("ref-origin");
+    let ok = |args: &[&str]| {
+        let r = prism(args);
+        assert!(r.status.success(), "{args:?}: {}", String::from_utf8_lossy(&r.stderr));
+    };
+    let small = ["--width", "8", "--height", "8"];
+    let out = |name: &str| d.join(name).display().to_string();
+    let white_room = scene_path("white-room.json").display().to_string();
+    let mut args = vec!["reference", &white_room, "--spp", "2", "--passes", "2", "--seed", "50"];
+    let reference = out("ref.exr");
+    args.extend(small.iter().chain(&["--out", &reference]));
+    ok(&args);
+    // The same file name, brighter walls: noted; the scene itself: not.
+    let alt = d.join("alt");
+    std::fs::create_dir_all(&alt).unwrap();
+    let text = std::fs::read_to_string(scene_path("white-room.json")).unwrap();
+    let brighter = text.replacen("\"emission\": 0.5", "\"emission\": 1.5", 1);
+    assert_ne!(brighter, text);
+    std::fs::write(alt.join("white-room.json"), brighter).unwrap();
+    let notes = |scene: PathBuf, reference: &str| {
+        let mut cfg = config("white-room.json", "path", ReferenceSource::File(d.join(reference)), &d.join("o"), 8);
+        (cfg.scene, cfg.max_spp) = (scene, Some(2));
+        run(&cfg).unwrap_or_else(|e| panic!("{e:#}")).notes
+    };
+    let other = "with other contents than this run's";
+    let n = notes(alt.join("white-room.json"), "ref.exr");
+    assert!(n.iter().any(|n| n.contains(other)), "{n:?}");
+    let n = notes(scene_path("white-room.json"), "ref.exr");
+    assert!(!n.iter().any(|n| n.contains(other)), "{n:?}");
+
+    // Seeds 2^64 - 1 and 0: the run's seed 0 is the second pass's.
+    let wrapped = out("wrapped.exr");
+    let mut args = vec!["reference", &white_room, "--spp", "1", "--passes", "2", "--seed", "18446744073709551615"];
+    args.extend(small.iter().chain(&["--out", &wrapped]));
+    ok(&args);
+    let mut cfg = config("white-room.json", "path", ReferenceSource::File(d.join("wrapped.exr")), &d.join("o"), 8);
+    (cfg.seed, cfg.max_spp) = (Some(0), Some(1));
+    let e = format!("{:#}", run(&cfg).expect_err("a reference that shares the run's seed was taken"));
+    assert!(e.contains("seeds 18446744073709551615 to 0") && e.contains("the run's seed 0"), "{e}");
+
+    // A --passes render's variance image with a negative value.
+    let passes = out("passes.exr");
+    let mut args = vec!["render", &white_room, "--spp", "1", "--passes", "2", "--seed", "60", "--quiet"];
+    args.extend(small.iter().chain(&["--out", &passes]));
+    ok(&args);
+    let mut variance = vec![[0.5f32; 3]; 64];
+    variance[9][1] = -1000.0;
+    write_exr(&d.join("passes.var.exr"), 8, 8, &variance).unwrap();
+    let mut cfg = config("white-room.json", "path", ReferenceSource::File(d.join("passes.exr")), &d.join("o"), 8);
+    cfg.max_spp = Some(1);
+    let e = format!("{:#}", run(&cfg).expect_err("a negative variance was taken"));
+    assert!(e.contains("passes.var.exr: a variance is negative (the first at x 1, y 1)"), "{e}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
 /// A `prism reference` records the depth it rendered with (the scene's
 /// `render.max_depth`, else the default 1024; it recorded none, and used
 /// the default whatever the scene said): a run at another depth is told

@@ -76,6 +76,7 @@ use crate::camera::Camera;
 use crate::film::{check_no_stale_state, check_outputs, check_writable, ensure_exr, DroppedSamples, Film};
 use crate::integrators::{self, IntegratorOptions, MisHeuristic, INTEGRATORS};
 use crate::render::{render, RenderOptions};
+use crate::render_state::SceneFile;
 use crate::scene::{load_scene, Scene};
 use crate::stats::rel_mse;
 use anyhow::{bail, ensure, Context, Result};
@@ -538,14 +539,14 @@ pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
         .iter()
         .map(|s| integrators::create(&s.name, &IntegratorOptions { max_depth, mis: s.mis }).map_err(anyhow::Error::msg))
         .collect::<Result<Vec<_>>>()?;
-    let scene_name = cfg.scene.display().to_string();
+    let scene_file = SceneFile::read(&cfg.scene)?;
     // What no estimator can get right: a note on every chart of the run.
     let mut notes: Vec<String> = scene.geometry_warnings();
     for n in &notes {
         eprintln!("warning: {n}");
     }
 
-    let (reference, info) = obtain_reference(cfg, &scene, &scene_name, seed, max_depth, &mut notes)?;
+    let (reference, info) = obtain_reference(cfg, &scene, &scene_file, seed, max_depth, &mut notes)?;
     ensure!(
         reference.len() == (w * h) as usize,
         "the reference has {} pixels but the run renders {w}x{h}: give --width/--height to match",
@@ -577,7 +578,7 @@ pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
         .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
         .and_then(|v| v.get("comment").and_then(|c| c.as_str()).map(str::to_string));
     let out = ConvergeResults {
-        scene: scene_name,
+        scene: scene_file.name,
         scene_comment,
         width: w,
         height: h,

@@ -6,6 +6,7 @@ use super::{spinner, ConvergeConfig, ReferenceInfo, ReferenceSource, REFERENCE_S
 use crate::film::{ensure_finite, read_exr, DroppedSamples};
 use crate::integrators::{self, IntegratorOptions, MisHeuristic};
 use crate::reference::{make_reference, write_reference, ReferenceMeta};
+use crate::render_state::SceneFile;
 use crate::scene::Scene;
 use crate::stats;
 use anyhow::{anyhow, bail, ensure, Context, Result};
@@ -15,7 +16,7 @@ use std::path::Path;
 pub(super) fn obtain_reference(
     cfg: &ConvergeConfig,
     scene: &Scene,
-    scene_name: &str,
+    file: &SceneFile,
     seed: u64,
     max_depth: u32,
     notes: &mut Vec<String>,
@@ -39,12 +40,12 @@ pub(super) fn obtain_reference(
         }
         ReferenceSource::Render { integrator, spp, passes, out } => {
             let job = ReferenceJob { integrator, spp: *spp, passes: *passes, out };
-            let (image, origin) = render_reference(cfg, scene, scene_name, seed, max_depth, &job)?;
+            let (image, origin) = render_reference(cfg, scene, file, seed, max_depth, &job)?;
             (image, Some(origin), out.clone(), true)
         }
     };
     match &origin {
-        Some(m) => notes.extend(origin_notes(cfg, scene, scene_name, seed, max_depth, m, &path)?),
+        Some(m) => notes.extend(origin_notes(cfg, scene, file, seed, max_depth, m, &path)?),
         None => notes.push("the reference has no sidecar: its integrator, spp and noise are unknown".to_string()),
     }
     Ok((image, reference_info(&path, here, origin.as_ref())))
@@ -63,7 +64,7 @@ struct ReferenceJob<'a> {
 fn render_reference(
     cfg: &ConvergeConfig,
     scene: &Scene,
-    scene_name: &str,
+    file: &SceneFile,
     seed: u64,
     max_depth: u32,
     job: &ReferenceJob,
@@ -89,7 +90,7 @@ fn render_reference(
     let bar = spinner(cfg.progress, format!("reference: {integrator}, {passes} passes x {per_pass} spp"));
     let (image, meta) = make_reference(
         scene,
-        scene_name,
+        file,
         estimator.as_ref(),
         integrator,
         &options,
@@ -116,7 +117,7 @@ fn render_reference(
 fn origin_notes(
     cfg: &ConvergeConfig,
     scene: &Scene,
-    scene_name: &str,
+    file: &SceneFile,
     seed: u64,
     max_depth: u32,
     m: &Origin,
@@ -124,8 +125,19 @@ fn origin_notes(
 ) -> Result<Vec<String>> {
     let (w, h) = (scene.camera.width, scene.camera.height);
     let mut notes = Vec::new();
-    if Path::new(&m.scene).file_name() != cfg.scene.file_name() {
-        notes.push(format!("the reference was rendered from {}, this run renders {scene_name}", m.scene));
+    match &m.scene_hash {
+        // Another file's content: an edit (a comment, a render default)
+        // may leave the image as it was, so a note, not a refusal.
+        Some(hash) if *hash != file.hash => notes.push(format!(
+            "the reference was rendered from {} with other contents than this run's {} (scene hash {hash}, this \
+             run's {}): if the scene changed, every error is measured against another scene's image",
+            m.scene, file.name, file.hash
+        )),
+        Some(_) => {}
+        None if Path::new(&m.scene).file_name() != cfg.scene.file_name() => {
+            notes.push(format!("the reference was rendered from {}, this run renders {}", m.scene, file.name));
+        }
+        None => {}
     }
     // A reference from an estimator that cannot sample the whole scene
     // is biased, and so is every error measured against it.
@@ -170,14 +182,16 @@ fn origin_notes(
     // the reference's own estimator by a factor (N - n) / (N + n), the
     // others through the shared wavelengths and pixel positions), so the
     // run is refused, not noted (an audit, session 36).
-    let seeds = m.seed..m.seed.saturating_add(m.passes.unwrap_or(1) as u64);
-    if seeds.contains(&seed) && m.first_sample < cfg.max_spp.unwrap_or(u32::MAX) {
+    // Pass i used seed + i, wrapping (`stats::render_pass_films`).
+    let passes = m.passes.unwrap_or(1) as u64;
+    if seed.wrapping_sub(m.seed) < passes && m.first_sample < cfg.max_spp.unwrap_or(u32::MAX) {
         bail!(
-            "{}: the reference's passes used seeds {}..{}, which include the run's seed {seed}: its samples would \
-             be correlated with the run's and every error measured too low; give the run another --seed",
+            "{}: the reference's {passes} pass(es) used seeds {} to {} (wrapping past 2^64 - 1), which include the \
+             run's seed {seed}: its samples would be correlated with the run's and every error measured too low; \
+             give the run another --seed",
             path.display(),
-            seeds.start,
-            seeds.end
+            m.seed,
+            m.seed.wrapping_add(passes - 1),
         );
     }
     Ok(notes)
@@ -207,6 +221,8 @@ fn reference_info(path: &Path, here: bool, origin: Option<&Origin>) -> Reference
 /// errors and so no noise estimate.
 struct Origin {
     scene: String,
+    /// The scene file's content (`SceneFile::hash`), if the sidecar has it.
+    scene_hash: Option<String>,
     integrator: String,
     seed: u64,
     width: u32,
@@ -234,6 +250,8 @@ struct Origin {
 #[derive(Deserialize)]
 struct RenderSidecar {
     scene: String,
+    #[serde(default)]
+    scene_hash: Option<String>,
     integrator: String,
     seed: u64,
     width: u32,
@@ -255,6 +273,7 @@ impl Origin {
     fn of_reference(m: &ReferenceMeta) -> Self {
         Origin {
             scene: m.scene.clone(),
+            scene_hash: m.scene_hash.clone(),
             integrator: m.integrator.clone(),
             seed: m.seed,
             width: m.width,
@@ -277,6 +296,7 @@ impl Origin {
     fn of_render(r: RenderSidecar) -> Self {
         Origin {
             scene: r.scene,
+            scene_hash: r.scene_hash,
             integrator: r.integrator,
             seed: r.seed,
             width: r.width,
@@ -320,6 +340,11 @@ fn read_any_reference(exr: &Path) -> Result<(Vec<[f32; 3]>, Origin)> {
         let (vw, vh, variance) = read_exr(&var)
             .with_context(|| format!("{}: its \"variance\" names {name}, which cannot be read", json.display()))?;
         ensure!((vw, vh) == (w, h), "{}: size {vw}x{vh} differs from {}'s {w}x{h}", var.display(), exr.display());
+        ensure_finite(&var, w, &variance)?;
+        if let Some(i) = variance.iter().position(|p| p.iter().any(|c| *c < 0.0)) {
+            let (x, y) = (i % w as usize, i / w as usize);
+            bail!("{}: a variance is negative (the first at x {x}, y {y})", var.display());
+        }
         origin.noise_floor = stats::reference_noise(&image, &variance, k as usize).map(|f| (f, PIXEL_VARIANCES));
     }
     Ok((image, origin))
