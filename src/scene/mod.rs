@@ -6,6 +6,7 @@ mod coplanar;
 mod gltf;
 mod json;
 pub mod locate;
+mod render_space;
 mod tagged;
 
 pub use self::gltf::{gltf_conductor_eta_k, load_gltf, parse_gltf, GltfScene};
@@ -285,7 +286,34 @@ impl SceneBuilder {
         self
     }
 
-    pub fn build(self) -> Scene {
+    /// Moves the geometry, the point lights and the camera by the exact
+    /// shift of `render_space::origin_shift`.
+    fn move_to_render_space(&mut self) {
+        let (lo, hi) = self
+            .meshes
+            .iter()
+            .flat_map(|(mesh, ..)| &mesh.positions)
+            .fold((Vec3A::INFINITY, Vec3A::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+        let shift = render_space::origin_shift(lo, hi);
+        if shift == Vec3A::ZERO {
+            return;
+        }
+        for p in self.meshes.iter_mut().flat_map(|(mesh, ..)| &mut mesh.positions) {
+            *p -= shift;
+        }
+        for (light, _) in &mut self.lights {
+            if let Light::Point(l) = light {
+                l.p = render_space::shifted(l.p, shift);
+            }
+        }
+        self.camera.position = render_space::shifted(self.camera.position, shift);
+    }
+
+    /// The scene, in render space (`render_space`: moved near the origin,
+    /// exactly, if it lies far from it; its positions are then not the
+    /// file's).
+    pub fn build(mut self) -> Scene {
+        self.move_to_render_space();
         let mut lights = Vec::new();
         let mut light_names = Vec::new();
         let mut records = Vec::with_capacity(self.meshes.len());
