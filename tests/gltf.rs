@@ -235,18 +235,24 @@ fn primitive_modes_points_and_lines_are_skipped_triangle_modes_render() {
         );
         assert!(has(&g.messages, &expected), "no {expected:?} in {:#?}", g.messages);
     }
+    assert_eq!(g.builder.build().triangle_count(), 6 + 4 + 6);
     // TRIANGLES, TRIANGLE_STRIP and TRIANGLE_FAN each cover the same hexagon
-    // (radius 1, at x = -2, 0, 2; y = -3), wound counter-clockwise as seen
-    // from +z.
-    let scene = g.builder.build();
-    assert_eq!(scene.triangle_count(), 6 + 4 + 6);
+    // (radius 1, at x = -2, 0, 2), wound counter-clockwise as seen from +z.
+    // The file puts them at y = -3; alone there, they would be moved to
+    // render space, so they are put at y = 0, where rays can aim in the
+    // file's coordinates.
+    let mut v = read_json(&dir().join("MeshPrimitiveModes.gltf"));
+    for (node, x) in [(4, -2), (5, 0), (6, 2)] {
+        v["nodes"][node]["translation"] = json!([x, 0, 0]);
+    }
+    let scene = parse(&v, "MeshPrimitiveModes (at y = 0)").unwrap().builder.build();
     for cx in [-2.0f32, 0.0, 2.0] {
         for k in 0..12 {
             let a = (k as f32 + 0.5) * std::f32::consts::TAU / 12.0;
-            let inside = Vec3A::new(cx + 0.8 * a.cos(), -3.0 + 0.8 * a.sin(), 5.0);
+            let inside = Vec3A::new(cx + 0.8 * a.cos(), 0.8 * a.sin(), 5.0);
             let hit = scene.intersect(&Ray::new(inside, Vec3A::NEG_Z)).unwrap_or_else(|| panic!("hole at x {cx}, {k}"));
             assert!(hit.ng.z > 0.99, "x {cx}: triangle wound clockwise ({})", hit.ng);
-            let outside = Vec3A::new(cx + 1.02 * a.cos(), -3.0 + 1.02 * a.sin(), 5.0);
+            let outside = Vec3A::new(cx + 1.02 * a.cos(), 1.02 * a.sin(), 5.0);
             assert!(scene.intersect(&Ray::new(outside, Vec3A::NEG_Z)).is_none(), "x {cx}: covers too much");
         }
     }
@@ -374,10 +380,6 @@ fn unsupported_features_are_named_errors() {
     assert!(e.contains("not a regular file"), "{e}");
 }
 
-/// glTF's nodes form disjoint trees (glTF 2.0, 3.5.3 "Node hierarchy": no
-/// node is the child of two parents or a root and a child). A node reached
-/// twice is an error that names it: walked as given, a chain of nodes each
-/// listing its child twice is a walk of 2^depth nodes (it hung the loader).
 /// What the loader reads past, ignores or skips, it says, with the effect
 /// (a Khronos sample-model audit, session 42).
 #[test]
@@ -425,6 +427,10 @@ fn what_is_passed_over_is_said() {
     assert!(has(&m, "scenes: the scene has no surfaces to render"), "{m:?}");
 }
 
+/// glTF's nodes form disjoint trees (glTF 2.0, 3.5.3 "Node hierarchy": no
+/// node is the child of two parents or a root and a child). A node reached
+/// twice is an error that names it: walked as given, a chain of nodes each
+/// listing its child twice is a walk of 2^depth nodes (it hung the loader).
 #[test]
 fn a_node_reached_twice_is_an_error() {
     let v = read_json(&dir().join("Triangle.gltf"));

@@ -11,7 +11,7 @@
 //! audit, session 42). pbrt-v4 renders in "camera-world" space for the
 //! same reason (§5.1.1). Here the shift is chosen so that the move is
 //! exact: each axis on which the geometry lies wholly on one side of 0, at
-//! least its own extent away, is moved by a multiple of a power of two no
+//! least its extent rounded up to a power of two away, is moved by a multiple of a power of two no
 //! finer than any position's last place, so every vertex keeps its exact
 //! value relative to every other. The image is the same in exact arithmetic
 //! and, for a scene whose positions were exact, bit for bit the image of
@@ -34,6 +34,10 @@ pub fn origin_shift(lo: Vec3A, hi: Vec3A) -> Vec3A {
         // each position's last place, and so is every difference.
         let grid = (far - near).max(ulp(far)).max(f32::MIN_POSITIVE);
         let grid = 2f32.powi(grid.log2().ceil() as i32);
+        if !grid.is_finite() {
+            // Extents near f32::MAX: no power of two bounds them.
+            return 0.0;
+        }
         let shift = (near / grid).floor() * grid;
         if lo > 0.0 {
             shift
@@ -60,9 +64,9 @@ fn ulp(x: f32) -> f32 {
 mod tests {
     use super::*;
 
-    /// Geometry that contains the origin, or lies nearer to it than its own
-    /// extent, is not moved; far geometry is moved to within twice its
-    /// extent of the origin, and every position's difference is exact.
+    /// Geometry that contains the origin, or lies nearer to it than its
+    /// extent rounded up to a power of two, is not moved; far geometry is
+    /// moved to within twice that power of two of the origin, exactly.
     #[test]
     fn the_shift_is_exact_and_only_where_it_helps() {
         let v = |x, y, z| Vec3A::new(x, y, z);
@@ -83,7 +87,9 @@ mod tests {
         let s = origin_shift(v(p, 0.0, 0.0), v(p, 0.0, 0.0)).x;
         assert_eq!(p - s + s, p);
         assert!((p - s).abs() <= 1.0);
-        // Non-finite bounds (an empty scene) move nothing.
+        // Non-finite bounds (an empty scene) and extents no f32 power of
+        // two bounds move nothing.
         assert_eq!(origin_shift(Vec3A::INFINITY, Vec3A::NEG_INFINITY), Vec3A::ZERO);
+        assert_eq!(origin_shift(v(1.0, 1e38, -3e38), v(f32::MAX, 3e38, -1e38)), Vec3A::ZERO);
     }
 }
