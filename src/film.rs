@@ -475,10 +475,23 @@ pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<[f32; 3]>)> {
         },
     )
     // (Its message only: the exr error repeats its source's in Display.)
-    .map_err(|e| anyhow::anyhow!("cannot read {}: {e}", path.display()))?;
+    .map_err(|e| anyhow::anyhow!("cannot read {}: {}", path.display(), missing_rgb(&meta).unwrap_or(e.to_string())))?;
     let size = img.layer_data.size;
     let (_, px) = img.layer_data.channel_data.pixels;
     Ok((size.width() as u32, size.height() as u32, px))
+}
+
+/// What an EXR lacks for `read_exr`, if no layer has R, G and B channels
+/// (the exr crate says "no layer in the image matched your specified
+/// requirements").
+fn missing_rgb(meta: &exr::meta::MetaData) -> Option<String> {
+    let names = |h: &exr::meta::header::Header| h.channels.list.iter().map(|c| c.name.to_string()).collect::<Vec<_>>();
+    let has_rgb = |n: &[String]| ["R", "G", "B"].iter().all(|c| n.iter().any(|m| m == c));
+    if meta.headers.iter().any(|h| has_rgb(&names(h))) {
+        return None;
+    }
+    let found: Vec<String> = meta.headers.iter().flat_map(names).collect();
+    Some(format!("no layer has R, G and B channels (it has {})", found.join(", ")))
 }
 
 /// A linear value as an 8-bit sRGB code, clamped to [0, 1] first (NaN to 0;
@@ -550,6 +563,22 @@ mod tests {
         std::fs::write(&path, &bytes).unwrap();
         let e = read_exr(&path).unwrap_err().to_string();
         assert!(e.contains("huge.exr: its header claims 100000x100000 pixels"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// An EXR without R, G and B (a luminance-only one) is refused with
+    /// the channels it has, not the crate's "no layer ... matched".
+    #[test]
+    fn an_exr_without_rgb_names_its_channels() {
+        use exr::prelude::*;
+        let dir = std::env::temp_dir().join(format!("prism-exr-y-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("luminance.exr");
+        let channels =
+            SpecificChannels::build().with_channel("Y").with_channel("A").with_pixel_fn(|_| (0.5f32, 1.0f32));
+        Image::from_channels((4, 4), channels).write().to_file(&path).unwrap();
+        let e = read_exr(&path).unwrap_err().to_string();
+        assert!(e.contains("luminance.exr: no layer has R, G and B channels (it has A, Y)"), "{e}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

@@ -638,12 +638,17 @@ fn resume(path: &Path, identity: &Identity, range: &Range<u32>) -> Result<(Film,
     let state = RenderState::load(path)?;
     let name = path.display().to_string();
     identity.ensure_same("this render", &state.identity, &name)?;
-    let held = state.contiguous_range();
-    ensure!(
-        held.as_ref().is_some_and(|h| h.start == range.start && h.end <= range.end),
-        "{name} holds samples {:?}, which are not the first samples of this render's {range:?}",
-        state.sample_ranges
-    );
+    match state.contiguous_range() {
+        Some(h) if h.start == range.start && h.end <= range.end => {}
+        Some(h) if h.start == range.start => bail!(
+            "{name} holds samples {h:?}, more than this render's {range:?}: ask for samples up to {} at least",
+            h.end
+        ),
+        _ => bail!(
+            "{name} holds samples {:?}, which are not the first samples of this render's {range:?}",
+            state.sample_ranges
+        ),
+    }
     Ok((state.film, state.provenance))
 }
 

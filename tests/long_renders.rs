@@ -340,6 +340,11 @@ fn bad_checkpoints_are_clear_errors() {
     }
     check(resume(&part.with_extension("state"), "5"), &part.with_extension("state"), "seed");
     check(resume(&later.with_extension("state"), "4"), &later.with_extension("state"), "not the first samples");
+    // More samples than the render asks for is said as such, not as a gap.
+    let mut fewer = resume(&part.with_extension("state"), "4");
+    let spp = fewer.iter().position(|a| a == "--spp").unwrap() + 1;
+    fewer[spp] = "8".to_string();
+    check(fewer, &part.with_extension("state"), "more than this render's 0..8: ask for samples up to 16");
     let args = resume(&part.with_extension("state"), "4");
     ok(&args.iter().map(String::as_str).collect::<Vec<_>>());
     assert_eq!(std::fs::read(&out).unwrap(), std::fs::read(&full).unwrap(), "resumed part != full render");
