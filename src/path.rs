@@ -292,7 +292,7 @@ impl Vertex {
             return Scatter { f, pdf_fwd: e.pdf, pdf_rev: e.pdf_rev };
         }
         if self.kind == VertexKind::Camera {
-            return Scatter { f: SampledSpectrum::ZERO, pdf_fwd: scene.camera.pdf_we_dir(wi), pdf_rev: 0.0 };
+            return Scatter { f: SampledSpectrum::ZERO, pdf_fwd: scene.camera.pdf_dir(wi), pdf_rev: 0.0 };
         }
         // A light origin or the environment.
         let Some((_, light)) = self.emitter(scene) else {

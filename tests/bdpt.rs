@@ -267,7 +267,7 @@ fn pdf(
     };
     let pdf_w = match v.kind {
         VertexKind::Light | VertexKind::Environment => return v.pdf_light(scene, next),
-        VertexKind::Camera => scene.camera.pdf_we_dir(wn),
+        VertexKind::Camera => scene.camera.pdf_dir(wn),
         VertexKind::Surface => {
             let Some((wp, _)) = prev.and_then(|prev| v.direction_to(prev)) else {
                 return 0.0;
@@ -491,7 +491,9 @@ fn check_path(scene: &Scene, x: &[Vertex], lambda: &SampledWavelengths, out: &mu
     let k = x.len() - 1;
     let (pc, pl) = densities(scene, x, lambda);
     let ts: Vec<usize> = (1..=k + 1).filter(|&t| allowed(scene, x, t)).collect();
-    if ts.is_empty() || pc[1] == 0.0 {
+    // A path whose first vertex is not in the image is no path of the
+    // estimator's (the camera's density takes the image as given).
+    if ts.is_empty() || pc[1] == 0.0 || scene.camera.sample_wi(x[1].p()).is_none() {
         return;
     }
     out.paths += 1;
@@ -669,7 +671,8 @@ fn a_light_walk_without_mis_is_the_same_walk() {
 /// A camera ray through the image's edge keeps its density. In f32 the
 /// last column's raster x = 31 + u rounds to 32 for u within 2^-20 of 1,
 /// and such rays, like many at x = 0, project back a rounding outside the
-/// image, where `Camera::pdf_we_dir` is 0. A 0 at the camera walk's first
+/// image, where the camera's density had a raster test and was 0 (it has
+/// none since session 42: `Camera::pdf_dir`). A 0 at the camera walk's first
 /// vertex reads as a delta to MIS (`remap0`), so every strategy's weight of
 /// that path was wrong. Vertex 1's pdf_fwd must be 1 / (A cos^3 theta)
 /// converted to area, at each of 4 x 1000 points on the image's edges
