@@ -21,7 +21,7 @@
 //! |-----------|-------|---------|--------------------------------------------------|
 //! | roughness | float | 0       | perceptual roughness r; alpha = r^2 (isotropic)  |
 //! | alpha     | float | -       | GGX alpha directly (isotropic)                   |
-//! | alpha_x   | float | -       | GGX alpha along the tangent (x); needs alpha_y   |
+//! | alpha_x   | float | -       | GGX alpha along the tangent (x: the Duff basis of the shading normal, tied to the world axes); needs alpha_y |
 //! | alpha_y   | float | -       | GGX alpha along the bitangent (y); needs alpha_x |
 //!
 //! At most one of `roughness`, `alpha`, (`alpha_x`, `alpha_y`) may be given.

@@ -33,7 +33,7 @@
 #[path = "common/scenes.rs"]
 mod scenes;
 
-use glam::{DMat3, DVec3};
+use glam::{DMat3, DVec3, Vec3A};
 use prism::film::Film;
 use prism::integrators::{Integrator, MisHeuristic, INTEGRATORS};
 use prism::render::{render, RenderOptions};
@@ -671,6 +671,25 @@ fn an_emitter_in_a_surface_is_named() {
      "transform": {"rotate": {"axis": [1, 0.3, 0.2], "degrees": 37}, "translate": [0.1, -0.2, 0.5]}}"#;
     let s = parse_scene(&stage("", panel, "", None), "t-junction", Path::new(".")).unwrap().build();
     assert_eq!(s.emitters_on_surfaces(), None, "a T-junction");
+    // A lamp in a ceiling's plane, turned and moved to x = 2e4: its
+    // vertices round there by ~2e-3, which render space keeps, and the
+    // check must allow for it (it named nothing, and path read 30 % below
+    // light; an audit, session 42).
+    let far = r#"{"rotate": {"axis": [1, 2, 3], "degrees": 37}, "translate": [20000, 0, 0]}"#;
+    let text = format!(
+        r#"{{"camera": {{"position": [20000, -3, 0], "look_at": [20000, 0, 3], "fov": 40, "width": 8, "height": 8}},
+  "materials": {{"white": {{"type": "diffuse", "reflectance": 0.7}}}},
+  "objects": [
+    {{"name": "ceiling", "shape": {{"type": "quad", "corners": [[-2, 2.5, -2], [-2, 2.5, 2], [2, 2.5, 2], [2, 2.5, -2]]}}, "material": "white", "transform": {far}}},
+    {{"name": "lamp", "shape": {{"type": "quad", "corners": [[-0.5, 2.5, -0.5], [0.5, 2.5, -0.5], [0.5, 2.5, 0.5], [-0.5, 2.5, 0.5]]}},
+     "material": "white", "emission": 5, "transform": {far}}}
+  ]
+}}"#
+    );
+    let s = parse_scene(&text, "far", Path::new(".")).unwrap().build();
+    assert_ne!(s.render_shift, Vec3A::ZERO, "the scene was not moved: no test of the shift");
+    let w = s.emitters_on_surfaces().unwrap_or_default();
+    assert!(w.contains("\"lamp (triangle") && w.contains("a \"white\" surface"), "far and turned: {w}");
 }
 
 /// A point light on a surface is named (`Scene::point_lights_on_surfaces`):

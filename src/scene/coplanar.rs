@@ -38,11 +38,14 @@ impl Scene {
         // other half covers the rounding of the padded bounds.
         let (lo, hi) = self.accel.bounds();
         let surface_of = |e: &AreaLight| {
-            let pad = 2.0 * near(e.v.iter().copied().chain([lo, hi]));
+            let pad = 2.0 * near(e.v.iter().copied().chain([lo, hi]), self.render_shift);
             let (e_lo, e_hi) = bounds(e.v);
             let mut surface = None;
             self.accel.overlapping((e_lo - pad, e_hi + pad), |slot| {
-                if surface.is_none() && slot != e.slot && lies_on(&e.v, e.n, &self.accel.vertices(slot)) {
+                if surface.is_none()
+                    && slot != e.slot
+                    && lies_on(&e.v, e.n, &self.accel.vertices(slot), self.render_shift)
+                {
                     surface = Some(match emitter_slots.binary_search_by_key(&slot, |&(s, _)| s) {
                         Ok(i) => format!("the emitter \"{}\"", emitter_slots[i].1),
                         Err(_) => self.surface_name(slot),
@@ -74,10 +77,10 @@ impl Scene {
     pub fn point_lights_on_surfaces(&self) -> Option<String> {
         let (lo, hi) = self.accel.bounds();
         let surface_at = |p: Vec3A| {
-            let pad = Vec3A::splat(2.0 * near([p, lo, hi]));
+            let pad = Vec3A::splat(2.0 * near([p, lo, hi], self.render_shift));
             let mut surface = None;
             self.accel.overlapping((p - pad, p + pad), |slot| {
-                if surface.is_none() && holds(&self.accel.vertices(slot), p) {
+                if surface.is_none() && holds(&self.accel.vertices(slot), p, self.render_shift) {
                     surface = Some(self.surface_name(slot));
                 }
             });
@@ -120,12 +123,12 @@ fn first_and_more<'a>(found: &'a [(&'a str, String)], what: &str) -> Option<(&'a
 /// In f64, so that the triangle's size adds nothing: a light 0.05 above a
 /// level ground of 1e5, whose rays meet the ground where they should, was
 /// taken for one on it with the tolerance of the ground's coordinates.
-fn holds(t: &[Vec3A; 3], p: Vec3A) -> bool {
+fn holds(t: &[Vec3A; 3], p: Vec3A, shift: Vec3A) -> bool {
     let [a, b, c] = t.map(|v| v.as_dvec3());
     let q = p.as_dvec3();
     let n = (b - a).cross(c - a).normalize_or_zero();
     let extent = [a, b, c, q].iter().map(|v| v.abs().max_element()).fold(0.0, f64::max);
-    let tolerance = near([p]) as f64 + 64.0 * f64::EPSILON * extent;
+    let tolerance = near([p], shift) as f64 + 64.0 * f64::EPSILON * extent;
     if (q - a).dot(n).abs() > tolerance {
         return false;
     }
@@ -148,8 +151,8 @@ fn kept_axes(dropped: usize) -> [usize; 2] {
 /// Whether triangle `t` lies in the plane of emitter `e` (unit normal `n`)
 /// within a few units in the last place of their coordinates, and the two
 /// overlap in that plane with positive area.
-fn lies_on(e: &[Vec3A; 3], n: Vec3A, t: &[Vec3A; 3]) -> bool {
-    let tolerance = near(e.iter().chain(t).copied());
+fn lies_on(e: &[Vec3A; 3], n: Vec3A, t: &[Vec3A; 3], shift: Vec3A) -> bool {
+    let tolerance = near(e.iter().chain(t).copied(), shift);
     if apart(bounds(*e), bounds(*t), tolerance) || t.iter().any(|&v| (v - e[0]).dot(n).abs() > tolerance) {
         return false;
     }
@@ -190,7 +193,11 @@ fn apart(a: (Vec3A, Vec3A), b: (Vec3A, Vec3A), gap: f32) -> bool {
 
 /// A few units in the last place of the largest coordinate of `points`:
 /// how close two surfaces must be for rounding to decide which one a ray
-/// meets.
-fn near(points: impl IntoIterator<Item = Vec3A>) -> f32 {
-    8.0 * f32::EPSILON * points.into_iter().map(|p| p.abs().max_element()).fold(0.0, f32::max)
+/// meets. The coordinates are the file's, before render space's `shift`
+/// (`Scene::render_shift`): the positions were rounded at that magnitude
+/// (a light in a ceiling's plane, rotated and moved to x = 2e4, lay 2e-3
+/// off it, past the render-space tolerance, and was not named; an audit,
+/// session 42).
+fn near(points: impl IntoIterator<Item = Vec3A>, shift: Vec3A) -> f32 {
+    8.0 * f32::EPSILON * points.into_iter().map(|p| (p.abs() + shift.abs()).max_element()).fold(0.0, f32::max)
 }

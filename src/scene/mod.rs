@@ -178,6 +178,9 @@ pub struct Scene {
     pub center: Vec3A,
     pub radius: f32,
     pub defaults: RenderDefaults,
+    /// What `render_space` subtracted from the file's positions (0 for a
+    /// scene that contains the origin).
+    pub render_shift: Vec3A,
 }
 
 /// The most triangles a scene may hold: 2^27, about 12 GiB at the ~92 bytes
@@ -287,8 +290,8 @@ impl SceneBuilder {
     }
 
     /// Moves the geometry, the point lights and the camera by the exact
-    /// shift of `render_space::origin_shift`.
-    fn move_to_render_space(&mut self) {
+    /// shift of `render_space::origin_shift`, which it returns.
+    fn move_to_render_space(&mut self) -> Vec3A {
         let (lo, hi) = self
             .meshes
             .iter()
@@ -296,7 +299,7 @@ impl SceneBuilder {
             .fold((Vec3A::INFINITY, Vec3A::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
         let shift = render_space::origin_shift(lo, hi);
         if shift == Vec3A::ZERO {
-            return;
+            return shift;
         }
         for p in self.meshes.iter_mut().flat_map(|(mesh, ..)| &mut mesh.positions) {
             *p -= shift;
@@ -307,13 +310,14 @@ impl SceneBuilder {
             }
         }
         self.camera.position = render_space::shifted(self.camera.position, shift);
+        shift
     }
 
     /// The scene, in render space (`render_space`: moved near the origin,
     /// exactly, if it lies far from it; its positions are then not the
     /// file's).
     pub fn build(mut self) -> Scene {
-        self.move_to_render_space();
+        let render_shift = self.move_to_render_space();
         let mut lights = Vec::new();
         let mut light_names = Vec::new();
         let mut records = Vec::with_capacity(self.meshes.len());
@@ -386,6 +390,7 @@ impl SceneBuilder {
             center,
             radius,
             defaults: self.defaults,
+            render_shift,
         }
     }
 }
