@@ -727,6 +727,19 @@ fn a_point_light_on_a_surface_is_named() {
     let light = r#"{"type": "point", "name": "bulb", "position": [0.3, -0.95, 0.2], "intensity": 2}"#;
     let s = parse_scene(&stage("", ground, light, None), "ground", Path::new(".")).unwrap().build();
     assert_eq!(s.point_lights_on_surfaces(), None, "0.05 over a ground of 1e5");
+    // The turned quad a hundredth the size, and the light on it, alone and
+    // moved to (789, -456, 124): both round there by ~6e-5, which render
+    // space keeps, while its coordinates are ~0.01 (an audit, session 42:
+    // unnamed, with path at 0.28 against light's 0.49).
+    let far = r#"{"camera": {"position": [789, -456, 120], "look_at": [789.1, -456.2, 123.5], "fov": 1, "width": 8, "height": 8},
+  "materials": {"white": {"type": "diffuse", "reflectance": 0.7}},
+  "objects": [{"name": "tilt", "shape": {"type": "quad", "corners": [[-0.005, -0.005, 0], [0.005, -0.005, 0], [0.005, 0.005, 0], [-0.005, 0.005, 0]]},
+    "material": "white", "transform": {"rotate": {"axis": [1, 0.3, 0.2], "degrees": 37}, "translate": [789.1, -456.2, 123.5]}}],
+  "lights": [{"type": "point", "name": "bulb", "position": [789.101893899977, -456.198851951465, 123.500308427215], "intensity": 2}]}"#;
+    let s = parse_scene(far, "far", Path::new(".")).unwrap().build();
+    assert_ne!(s.render_shift, Vec3A::ZERO, "the scene was not moved: no test of the shift");
+    let w = s.point_lights_on_surfaces().unwrap_or_default();
+    assert!(w.contains("\"bulb\"") && w.contains("\"white\" surface"), "far and turned: {w}");
 }
 
 #[test]
