@@ -143,7 +143,7 @@ fn narrow_view() -> Scene {
 /// narrow view sees lie on a lattice a few percent of a pixel apart, and
 /// the splats piled onto it: rows and columns of this uniform view read
 /// 1.7 % low under `light` and 0.7 % under `bdpt` (an audit, session 42).
-/// Each 4x4 block must read 1; the control, light tracing that projects
+/// Each pixel must read 1; the control, light tracing that projects
 /// the f32 direction, must not.
 #[test]
 fn a_narrow_view_is_uniform_too() {

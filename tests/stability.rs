@@ -675,21 +675,28 @@ fn an_emitter_in_a_surface_is_named() {
     // vertices round there by ~2e-3, which render space keeps, and the
     // check must allow for it (it named nothing, and path read 30 % below
     // light; an audit, session 42).
-    let far = r#"{"rotate": {"axis": [1, 2, 3], "degrees": 37}, "translate": [20000, 0, 0]}"#;
-    let text = format!(
-        r#"{{"camera": {{"position": [20000, -3, 0], "look_at": [20000, 0, 3], "fov": 40, "width": 8, "height": 8}},
+    let far_scene = |far: &str, ceiling_y: f32| {
+        let text = format!(
+            r#"{{"camera": {{"position": [20000, -3, 0], "look_at": [20000, 0, 3], "fov": 40, "width": 8, "height": 8}},
   "materials": {{"white": {{"type": "diffuse", "reflectance": 0.7}}}},
   "objects": [
-    {{"name": "ceiling", "shape": {{"type": "quad", "corners": [[-2, 2.5, -2], [-2, 2.5, 2], [2, 2.5, 2], [2, 2.5, -2]]}}, "material": "white", "transform": {far}}},
+    {{"name": "ceiling", "shape": {{"type": "quad", "corners": [[-2, {ceiling_y}, -2], [-2, {ceiling_y}, 2], [2, {ceiling_y}, 2], [2, {ceiling_y}, -2]]}}, "material": "white", "transform": {far}}},
     {{"name": "lamp", "shape": {{"type": "quad", "corners": [[-0.5, 2.5, -0.5], [0.5, 2.5, -0.5], [0.5, 2.5, 0.5], [-0.5, 2.5, 0.5]]}},
      "material": "white", "emission": 5, "transform": {far}}}
   ]
 }}"#
-    );
-    let s = parse_scene(&text, "far", Path::new(".")).unwrap().build();
-    assert_ne!(s.render_shift, Vec3A::ZERO, "the scene was not moved: no test of the shift");
-    let w = s.emitters_on_surfaces().unwrap_or_default();
+        );
+        let s = parse_scene(&text, "far", Path::new(".")).unwrap().build();
+        assert_ne!(s.render_shift, Vec3A::ZERO, "the scene was not moved: no test of the shift");
+        s.emitters_on_surfaces()
+    };
+    let turned = r#"{"rotate": {"axis": [1, 2, 3], "degrees": 37}, "translate": [20000, 0, 0]}"#;
+    let w = far_scene(turned, 2.5).unwrap_or_default();
     assert!(w.contains("\"lamp (triangle") && w.contains("a \"white\" surface"), "far and turned: {w}");
+    // The shift rounds only its own axis: a ceiling 0.01 above, level and
+    // moved along x, is no surface of the lamp's (a review found it named
+    // when the shift widened the tolerance on every axis).
+    assert_eq!(far_scene(r#"{"translate": [20000, 0, 0]}"#, 2.51), None, "far and level, 0.01 apart");
 }
 
 /// A point light on a surface is named (`Scene::point_lights_on_surfaces`):

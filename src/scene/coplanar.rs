@@ -38,7 +38,7 @@ impl Scene {
         // other half covers the rounding of the padded bounds.
         let (lo, hi) = self.accel.bounds();
         let surface_of = |e: &AreaLight| {
-            let pad = 2.0 * near(e.v.iter().copied().chain([lo, hi]), self.render_shift);
+            let pad = 2.0 * (near(e.v.iter().copied().chain([lo, hi])) + off_plane(Vec3A::ONE, self.render_shift));
             let (e_lo, e_hi) = bounds(e.v);
             let mut surface = None;
             self.accel.overlapping((e_lo - pad, e_hi + pad), |slot| {
@@ -77,7 +77,7 @@ impl Scene {
     pub fn point_lights_on_surfaces(&self) -> Option<String> {
         let (lo, hi) = self.accel.bounds();
         let surface_at = |p: Vec3A| {
-            let pad = Vec3A::splat(2.0 * near([p, lo, hi], self.render_shift));
+            let pad = Vec3A::splat(2.0 * (near([p, lo, hi]) + off_plane(Vec3A::ONE, self.render_shift)));
             let mut surface = None;
             self.accel.overlapping((p - pad, p + pad), |slot| {
                 if surface.is_none() && holds(&self.accel.vertices(slot), p, self.render_shift) {
@@ -128,7 +128,7 @@ fn holds(t: &[Vec3A; 3], p: Vec3A, shift: Vec3A) -> bool {
     let q = p.as_dvec3();
     let n = (b - a).cross(c - a).normalize_or_zero();
     let extent = [a, b, c, q].iter().map(|v| v.abs().max_element()).fold(0.0, f64::max);
-    let tolerance = near([p], shift) as f64 + 64.0 * f64::EPSILON * extent;
+    let tolerance = (near([p]) + off_plane(n.as_vec3a(), shift)) as f64 + 64.0 * f64::EPSILON * extent;
     if (q - a).dot(n).abs() > tolerance {
         return false;
     }
@@ -152,7 +152,7 @@ fn kept_axes(dropped: usize) -> [usize; 2] {
 /// within a few units in the last place of their coordinates, and the two
 /// overlap in that plane with positive area.
 fn lies_on(e: &[Vec3A; 3], n: Vec3A, t: &[Vec3A; 3], shift: Vec3A) -> bool {
-    let tolerance = near(e.iter().chain(t).copied(), shift);
+    let tolerance = near(e.iter().chain(t).copied()) + off_plane(n, shift);
     if apart(bounds(*e), bounds(*t), tolerance) || t.iter().any(|&v| (v - e[0]).dot(n).abs() > tolerance) {
         return false;
     }
@@ -193,11 +193,18 @@ fn apart(a: (Vec3A, Vec3A), b: (Vec3A, Vec3A), gap: f32) -> bool {
 
 /// A few units in the last place of the largest coordinate of `points`:
 /// how close two surfaces must be for rounding to decide which one a ray
-/// meets. The coordinates are the file's, before render space's `shift`
-/// (`Scene::render_shift`): the positions were rounded at that magnitude
-/// (a light in a ceiling's plane, rotated and moved to x = 2e4, lay 2e-3
-/// off it, past the render-space tolerance, and was not named; an audit,
-/// session 42).
-fn near(points: impl IntoIterator<Item = Vec3A>, shift: Vec3A) -> f32 {
-    8.0 * f32::EPSILON * points.into_iter().map(|p| (p.abs() + shift.abs()).max_element()).fold(0.0, f32::max)
+/// meets.
+fn near(points: impl IntoIterator<Item = Vec3A>) -> f32 {
+    8.0 * f32::EPSILON * points.into_iter().map(|p| p.abs().max_element()).fold(0.0, f32::max)
+}
+
+/// What render space's `shift` (`Scene::render_shift`) adds to `near` off
+/// a plane of unit normal `n`: the positions were rounded at the file's
+/// magnitude on each shifted axis, which moves a point off the plane only
+/// along its normal's components. A light in a ceiling's plane, turned and
+/// moved to x = 2e4, lay 2e-3 off it and was not named; taken on every
+/// axis, the shift named a lamp 0.01 below a level ceiling moved along x
+/// (an audit and a review, session 42).
+fn off_plane(n: Vec3A, shift: Vec3A) -> f32 {
+    8.0 * f32::EPSILON * n.abs().dot(shift.abs())
 }
