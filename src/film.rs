@@ -513,6 +513,13 @@ fn srgb_encode(c: f32) -> f32 {
 mod tests {
     use super::*;
 
+    /// A fresh directory for one test's files (its caller removes it).
+    fn scratch_dir(name: &str) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("prism-{name}-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
     /// Two writes of one image give the same bytes (the exr crate compresses
     /// blocks in parallel; in its default "unspecified" line order about one
     /// write in six of a small render came out in another block order).
@@ -526,8 +533,7 @@ mod tests {
                 [v, v * 0.5, 1.0 - v]
             })
             .collect();
-        let dir = std::env::temp_dir().join(format!("prism-exr-bytes-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = scratch_dir("exr-bytes");
         let path = dir.join("x.exr");
         let mut first = None;
         for _ in 0..96 {
@@ -545,8 +551,7 @@ mod tests {
     /// aborted the process on a 120 GB allocation (an audit, session 42).
     #[test]
     fn an_exr_header_past_the_pixel_limit_is_refused() {
-        let dir = std::env::temp_dir().join(format!("prism-exr-huge-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = scratch_dir("exr-huge");
         let path = dir.join("huge.exr");
         write_exr(&path, 16, 16, &[[0.5; 3]; 256]).unwrap();
         let mut bytes = std::fs::read(&path).unwrap();
@@ -571,8 +576,7 @@ mod tests {
     #[test]
     fn an_exr_without_rgb_names_its_channels() {
         use exr::prelude::*;
-        let dir = std::env::temp_dir().join(format!("prism-exr-y-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = scratch_dir("exr-y");
         let path = dir.join("luminance.exr");
         let channels =
             SpecificChannels::build().with_channel("Y").with_channel("A").with_pixel_fn(|_| (0.5f32, 1.0f32));
@@ -600,8 +604,7 @@ mod tests {
     /// contents can fail.
     #[test]
     fn outputs_change_no_target_unless_all_are_written() {
-        let dir = std::env::temp_dir().join(format!("prism-outputs-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = scratch_dir("outputs");
         let (a, b) = (dir.join("a.json"), dir.join("b.bin"));
         std::fs::write(&a, "old a").unwrap();
         std::fs::write(&b, "old b").unwrap();
