@@ -45,14 +45,13 @@
 
 use super::{Integrator, IntegratorOptions, MisHeuristic};
 use crate::materials::TransportMode;
-use crate::path::{
-    camera_subpath, connect_to_camera, light_subpath, specular_chains_to_point_lights, Scatter, Segment, Vertex,
-};
+use crate::path::{camera_subpath, connect_to_camera, light_subpath, Scatter, Segment, Vertex};
 use crate::render::{Splat, StrategyRecord, Workspace};
 use crate::sampling::Sampler;
 use crate::scene::Scene;
 use crate::select::select_f32;
 use crate::spectrum::{SampledSpectrum, SampledWavelengths};
+use crate::unsamplable::{environment_paths_overflow, specular_chains_to_point_lights};
 use glam::{UVec2, Vec2, Vec4};
 
 pub struct Bdpt {
@@ -131,7 +130,7 @@ impl Integrator for Bdpt {
 
     fn unsamplable(&self, scene: &Scene) -> Vec<String> {
         let mut warnings = specular_chains_to_point_lights(scene);
-        warnings.extend(crate::path::environment_paths_overflow(scene));
+        warnings.extend(environment_paths_overflow(scene));
         warnings
     }
 }

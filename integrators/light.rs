@@ -21,11 +21,12 @@
 //! | max_depth | int  | 1024    | maximum scattering events   |
 
 use super::{Integrator, IntegratorOptions};
-use crate::path::{connect_to_camera, light_subpath, specular_chains_to_point_lights};
+use crate::path::{connect_to_camera, light_subpath};
 use crate::render::Workspace;
 use crate::sampling::Sampler;
 use crate::scene::Scene;
 use crate::spectrum::{SampledSpectrum, SampledWavelengths};
+use crate::unsamplable::{environment_paths_overflow, specular_chains_to_point_lights};
 use glam::{UVec2, Vec2};
 use rayon::prelude::*;
 
@@ -73,7 +74,7 @@ impl Integrator for LightTracer {
             ));
         }
         warnings.extend(specular_chains_to_point_lights(scene));
-        warnings.extend(crate::path::environment_paths_overflow(scene));
+        warnings.extend(environment_paths_overflow(scene));
         warnings
     }
 }

@@ -15,12 +15,13 @@
 //! |-----------|------|---------|----------------------------------|
 //! | max_depth | int  | 1024    | maximum scattering events        |
 
-use super::{russian_roulette, Integrator, IntegratorOptions};
+use super::{Integrator, IntegratorOptions};
 use crate::accel::LANES;
 use crate::geometry::Ray;
 use crate::light::Light;
 use crate::materials::{Bsdf, TransportMode};
 use crate::render::Workspace;
+use crate::roulette::russian_roulette;
 use crate::sampling::{power_heuristic, Sampler};
 use crate::scene::{Scene, SurfaceInteraction};
 use crate::spectrum::{SampledSpectrum, SampledWavelengths};
@@ -87,14 +88,14 @@ impl Integrator for PathTracer {
     }
 
     fn unsamplable(&self, scene: &Scene) -> Vec<String> {
-        let mut warnings = crate::path::specular_chains_to_point_lights(scene);
+        let mut warnings = crate::unsamplable::specular_chains_to_point_lights(scene);
         // A camera path reaches a point light only by next-event estimation
         // from a non-specular vertex: light that leaves it by a smooth
         // specular bounce first (a caustic, L S+ D ... E) is never sampled.
-        warnings.extend(crate::path::point_lights_with_specular(scene, |name, specular| {
+        warnings.extend(crate::unsamplable::point_lights_with_specular(scene, |name, specular| {
             format!("path tracing cannot reach the point light \"{name}\" through the smooth specular material(s) {specular}: its caustics (light -> specular -> diffuse) are missing from the image (light and bdpt render them)")
         }));
-        warnings.extend(crate::path::point_lights_in_view(scene).into_iter().map(|name| {
+        warnings.extend(crate::unsamplable::point_lights_in_view(scene).into_iter().map(|name| {
             format!("path tracing cannot see the point light \"{name}\" directly through the pinhole: its pixel will lack the light itself (light and bdpt render it)")
         }));
         warnings
@@ -127,7 +128,7 @@ impl PathTracer {
             if let Some(i) = si.light {
                 let light = &scene.lights[i as usize];
                 if let Light::Area(a) = light {
-                    let le = Light::area_le(a, si.ng, si.wo, lambda);
+                    let le = a.radiance(si.ng, si.wo, lambda);
                     if !le.is_black() {
                         l += beta * le * emitter_weight(scene, &prev, i, light, si.p, si.ng);
                     }

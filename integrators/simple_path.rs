@@ -9,10 +9,11 @@
 //! |-----------|------|---------|----------------------------------|
 //! | max_depth | int  | 1024    | maximum scattering events        |
 
-use super::{russian_roulette, Integrator, IntegratorOptions};
+use super::{Integrator, IntegratorOptions};
 use crate::light::Light;
 use crate::materials::TransportMode;
 use crate::render::Workspace;
+use crate::roulette::russian_roulette;
 use crate::sampling::Sampler;
 use crate::scene::Scene;
 use crate::spectrum::{SampledSpectrum, SampledWavelengths};
@@ -50,7 +51,7 @@ impl Integrator for SimplePath {
             };
             if let Some(i) = si.light {
                 if let Light::Area(a) = &scene.lights[i as usize] {
-                    l += beta * Light::area_le(a, si.ng, si.wo, lambda);
+                    l += beta * a.radiance(si.ng, si.wo, lambda);
                 }
             }
             if depth == self.max_depth {
@@ -74,12 +75,8 @@ impl Integrator for SimplePath {
     }
 
     fn unsamplable(&self, scene: &Scene) -> Vec<String> {
-        scene
-            .lights
-            .iter()
-            .zip(&scene.light_names)
-            .filter(|(l, _)| l.is_delta_position())
-            .map(|(_, name)| {
+        crate::unsamplable::point_light_names(scene)
+            .map(|name| {
                 format!("simple_path cannot hit the point light \"{name}\": its light is missing from the image")
             })
             .collect()

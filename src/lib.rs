@@ -14,12 +14,14 @@ pub mod path;
 pub mod reference;
 pub mod render;
 pub mod render_state;
+pub mod roulette;
 pub mod sampling;
 pub mod scene;
 pub mod select;
 pub mod shapes;
 pub mod spectrum;
 pub mod stats;
+pub mod unsamplable;
 pub mod wide_bvh;
 
 #[path = "../materials/mod.rs"]

@@ -36,6 +36,25 @@ pub struct AreaLight {
     pub slot: u32,
 }
 
+impl AreaLight {
+    /// Whether a point of the light with normal `n` emits in direction `w`:
+    /// from its front side, or from both.
+    #[inline]
+    pub fn emits_toward(&self, n: Vec3A, w: Vec3A) -> bool {
+        self.two_sided || n.dot(w) > 0.0
+    }
+
+    /// Radiance leaving a point of the light with normal `n` in direction `w`.
+    #[inline]
+    pub fn radiance(&self, n: Vec3A, w: Vec3A, lambda: &SampledWavelengths) -> SampledSpectrum {
+        if self.emits_toward(n, w) {
+            self.le.sample(lambda)
+        } else {
+            SampledSpectrum::ZERO
+        }
+    }
+}
+
 /// An isotropic point light of radiant intensity `intensity` (W/sr per nm).
 #[derive(Clone, Debug)]
 pub struct PointLight {
@@ -129,15 +148,6 @@ impl Light {
         }
     }
 
-    /// Radiance leaving an area light's point with normal `n` in direction `w`.
-    #[inline]
-    pub fn area_le(a: &AreaLight, n: Vec3A, w: Vec3A, lambda: &SampledWavelengths) -> SampledSpectrum {
-        if !a.two_sided && n.dot(w) <= 0.0 {
-            return SampledSpectrum::ZERO;
-        }
-        a.le.sample(lambda)
-    }
-
     /// Radiance of the environment arriving from any direction.
     #[inline]
     pub fn environment_le(&self, lambda: &SampledWavelengths) -> SampledSpectrum {
@@ -165,7 +175,7 @@ impl Light {
                 let dist = dist2.sqrt();
                 let wi = to / dist;
                 let cos_l = a.n.dot(-wi);
-                let l = Self::area_le(a, a.n, -wi, lambda);
+                let l = a.radiance(a.n, -wi, lambda);
                 if l.is_black() || cos_l == 0.0 {
                     return None;
                 }

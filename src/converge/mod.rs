@@ -256,7 +256,7 @@ impl IntegratorSpec {
                 Some(h) => specs.push(IntegratorSpec { label: item.to_string(), name: name.to_string(), mis: h }),
                 None if aware && (mis.len() > 1 || mis[0] != MisHeuristic::Power) => {
                     for &h in mis {
-                        let label = format!("{name}:{}", heuristic_name(h));
+                        let label = format!("{name}:{}", h.name());
                         specs.push(IntegratorSpec { label, name: name.to_string(), mis: h });
                     }
                 }
@@ -290,14 +290,6 @@ impl IntegratorSpec {
 
 fn file_stem(label: &str) -> String {
     label.chars().map(|c| if c.is_ascii_alphanumeric() || c == '_' || c == '-' { c } else { '-' }).collect()
-}
-
-fn heuristic_name(h: MisHeuristic) -> &'static str {
-    match h {
-        MisHeuristic::Power => "power",
-        MisHeuristic::Balance => "balance",
-        MisHeuristic::Uniform => "uniform",
-    }
 }
 
 /// The clock that budgets, charts and efficiencies use.
@@ -530,6 +522,7 @@ pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
         builder.set_resolution(w, h).map_err(|e| anyhow::anyhow!("--width, --height: {e}"))?;
     }
     let defaults = builder.defaults.clone();
+    let scene_comment = builder.comment.take();
     let seed = cfg.seed.or(defaults.seed).unwrap_or(0);
     let max_depth = cfg.max_depth.or(defaults.max_depth).unwrap_or(IntegratorOptions::default().max_depth);
     let scene = builder.build();
@@ -573,10 +566,6 @@ pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
         x.slope = spp_slope(&x.checkpoints, info.noise_floor);
     }
     notes.extend(results.iter().flat_map(|x| result_notes(cfg, x, &info)));
-    let scene_comment = std::fs::read_to_string(&cfg.scene)
-        .ok()
-        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
-        .and_then(|v| v.get("comment").and_then(|c| c.as_str()).map(str::to_string));
     let out = ConvergeResults {
         scene: scene_file.name,
         scene_comment,
@@ -821,11 +810,10 @@ fn converge_one(
     }
     let last = *checkpoints.last().context("no checkpoint rendered")?;
     bar.finish();
-    let slope = spp_slope(&checkpoints, None);
     let result = IntegratorResult {
         label: spec.label.clone(),
         integrator: spec.name.clone(),
-        mis: heuristic_name(spec.mis).to_string(),
+        mis: spec.mis.name().to_string(),
         warnings,
         spp: last.spp,
         seconds: last.time(cfg.clock),
@@ -835,7 +823,8 @@ fn converge_one(
         mae: last.mae,
         efficiency: efficiency(last.rel_mse, last.time(cfg.clock), cfg.clock),
         samples_per_second: last.spp as f64 * (w * h) as f64 / last.seconds,
-        slope,
+        // Set by `run` once the reference's noise floor is known.
+        slope: None,
         dropped: film.dropped,
         checkpoints,
     };

@@ -51,7 +51,6 @@ impl std::error::Error for LoadError {}
 #[serde(deny_unknown_fields)]
 struct SceneFile {
     #[serde(default)]
-    #[allow(dead_code)]
     comment: Option<String>,
     camera: CameraSpec,
     #[serde(default, deserialize_with = "unique_names")]
@@ -306,9 +305,9 @@ fn half() -> SpectrumSpec {
 struct ObjectSpec {
     #[serde(default)]
     name: Option<String>,
-    #[serde(default)]
-    #[allow(dead_code)]
-    comment: Option<String>,
+    /// Accepted (the format allows a note on any object) and never read.
+    #[serde(default, rename = "comment")]
+    _comment: Option<String>,
     shape: ShapeSpec,
     /// Required, except for a `gltf` shape (whose materials map themselves).
     #[serde(default)]
@@ -1182,6 +1181,7 @@ fn build(ctx: &Ctx, f: &SceneFile) -> Result<SceneBuilder, LoadError> {
     objects(ctx, &mut b, &f.objects, &material_ids)?;
     lights(ctx, &mut b, &f.lights)?;
     b.defaults = render_defaults(ctx, &f.render)?;
+    b.comment = f.comment.clone();
     Ok(b)
 }
 

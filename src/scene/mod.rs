@@ -232,6 +232,8 @@ pub struct SceneBuilder {
     triangles: usize,
     lights: Vec<(Light, String)>,
     pub defaults: RenderDefaults,
+    /// The scene file's top-level `comment` (converge's report quotes it).
+    pub comment: Option<String>,
 }
 
 impl SceneBuilder {
@@ -243,6 +245,7 @@ impl SceneBuilder {
             triangles: 0,
             lights: Vec::new(),
             defaults: RenderDefaults::default(),
+            comment: None,
         }
     }
 
