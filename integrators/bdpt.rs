@@ -235,7 +235,13 @@ fn next_event(
 }
 
 /// s, t >= 2: y_{s-1} joined to z_{t-1} by a shadow ray, with
-/// G = |cos||cos| / d^2 (shading normals).
+/// G = |cos||cos| / d^2 (shading normals). Not when either end lies within
+/// rounding of the other's plane: in exact arithmetic G is 0 there (both on
+/// one plane) or nearly so (both near an edge), while in f32 the sides the
+/// segment leaves by are decided by rounding, and the shadow ray, which
+/// skips both end triangles (and their coplanar neighbours), cannot see it
+/// pass through the surface: a light inside a closed shell lit the outside
+/// of the shell through such connections (an audit, session 43).
 fn vertex_connection(
     scene: &Scene,
     light: &[Vertex],
@@ -248,6 +254,10 @@ fn vertex_connection(
     if !qs.connectible || !pt.connectible {
         return None;
     }
+    let (ends_q, ends_p) = (qs.si.point(), pt.si.point());
+    if !ends_q.clearly_off_plane(&ends_p) || !ends_p.clearly_off_plane(&ends_q) {
+        return None;
+    }
     let g = qs.segment_to(pt)?;
     let sp = pt.scatter(scene, -g.w, lambda, TransportMode::Radiance);
     if sp.f.is_black() {
@@ -256,7 +266,7 @@ fn vertex_connection(
     let sq = qs.scatter(scene, g.w, lambda, TransportMode::Importance);
     let geometry = qs.si.frame.n.dot(g.w).abs() * pt.si.frame.n.dot(g.w).abs() * g.inv_d2;
     let l = qs.beta * sq.f * sp.f * pt.beta * geometry;
-    if l.is_black() || !scene.unoccluded(qs.si.point(), pt.si.point()) {
+    if l.is_black() || !scene.unoccluded(ends_q, ends_p) {
         return None;
     }
     Connection::new(l, Reverse::connection(qs, &sq, pt, &sp, &g), light, camera, None, s, t)

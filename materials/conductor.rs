@@ -23,7 +23,7 @@
 //!
 //! max(alpha_x, alpha_y) < 1e-3 gives the smooth (delta) conductor.
 
-use super::fresnel::{fr_conductor, reflect};
+use super::fresnel::{fr_conductor, reflect, reflect_z};
 use super::microfacet::TrowbridgeReitz;
 use super::{same_hemisphere, BsdfFlags, BsdfSample, TransportMode};
 use crate::spectrum::{SampledSpectrum, SampledWavelengths, Spectrum};
@@ -76,7 +76,7 @@ impl Conductor {
             return None;
         }
         if self.distrib.effectively_smooth() {
-            let wi = Vec3A::new(-wo.x, -wo.y, wo.z);
+            let wi = reflect_z(wo);
             let weight = self.fresnel(wo.z, lambda);
             return BsdfSample::specular(wi, weight, 1.0, BsdfFlags::SPECULAR_REFLECTION, 1.0);
         }

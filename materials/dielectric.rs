@@ -34,7 +34,7 @@
 //! | alpha_x   | float                   | -       | anisotropic GGX alpha along x (with alpha_y)             |
 //! | alpha_y   | float                   | -       | anisotropic GGX alpha along y (with alpha_x)             |
 
-use super::fresnel::{fr_dielectric, fr_dielectric_refracted, reflect, refract};
+use super::fresnel::{fr_dielectric, fr_dielectric_refracted, reflect, reflect_z, refract};
 use super::microfacet::{refraction_jacobian, TrowbridgeReitz};
 use super::{BsdfFlags, BsdfSample, TransportMode};
 use crate::spectrum::{SampledSpectrum, SampledWavelengths, Spectrum};
@@ -186,7 +186,7 @@ impl Dielectric {
     fn sample_smooth(&self, wo: Vec3A, uc: f32, eta: f32, mode: TransportMode) -> Option<BsdfSample> {
         let r = fr_dielectric(wo.z, eta);
         if uc < r {
-            let wi = Vec3A::new(-wo.x, -wo.y, wo.z);
+            let wi = reflect_z(wo);
             return BsdfSample::specular(wi, self.spectral(r), r, BsdfFlags::SPECULAR_REFLECTION, 1.0);
         }
         let (wi, etap) = refract(wo, Vec3A::Z, eta)?;

@@ -126,6 +126,13 @@ pub fn reflect(wo: Vec3A, n: Vec3A) -> Vec3A {
     -wo + 2.0 * wo.dot(n) * n
 }
 
+/// Mirror direction of a local `wo` about the shading normal (0, 0, 1):
+/// `reflect(wo, Vec3A::Z)` written out.
+#[inline]
+pub fn reflect_z(wo: Vec3A) -> Vec3A {
+    Vec3A::new(-wo.x, -wo.y, wo.z)
+}
+
 /// Snell refraction of `wi` (pointing away from the surface) through an
 /// interface with normal `n` and relative index `eta` (inside over outside).
 /// Returns the transmitted direction and the relative index eta' = eta_t /

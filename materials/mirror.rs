@@ -14,6 +14,7 @@
 //! |-------------|----------|---------|-------------------------------------------|
 //! | reflectance | spectrum | 1       | rho(lambda) in [0, 1], for every direction |
 
+use super::fresnel::reflect_z;
 use super::{BsdfFlags, BsdfSample, TransportMode};
 use crate::spectrum::{SampledSpectrum, SampledWavelengths, Spectrum};
 use glam::{Vec2, Vec3A};
@@ -42,7 +43,7 @@ impl Mirror {
         lambda: &SampledWavelengths,
         _mode: TransportMode,
     ) -> Option<BsdfSample> {
-        let wi = Vec3A::new(-wo.x, -wo.y, wo.z);
+        let wi = reflect_z(wo);
         BsdfSample::specular(wi, self.reflectance.sample(lambda), 1.0, BsdfFlags::SPECULAR_REFLECTION, 1.0)
     }
 

@@ -222,12 +222,6 @@ impl Bsdf {
     }
 }
 
-/// Cosine of a local direction with the normal.
-#[inline]
-pub fn cos_theta(w: Vec3A) -> f32 {
-    w.z
-}
-
 #[inline]
 pub fn abs_cos_theta(w: Vec3A) -> f32 {
     w.z.abs()

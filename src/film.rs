@@ -35,6 +35,11 @@ impl DroppedSamples {
         self.nan.saturating_add(self.infinite).saturating_add(self.negative)
     }
 
+    /// "N `what` (a NaN, b infinite, c negative)".
+    pub fn describe(&self, what: &str) -> String {
+        format!("{} {what} ({} NaN, {} infinite, {} negative)", self.total(), self.nan, self.infinite, self.negative)
+    }
+
     pub fn merge(&mut self, o: &DroppedSamples) {
         self.nan = self.nan.saturating_add(o.nan);
         self.infinite = self.infinite.saturating_add(o.infinite);
@@ -75,6 +80,14 @@ impl DroppedSamples {
     }
 }
 
+/// "N samples (a NaN, b infinite, c negative)", as the warnings and notes
+/// say it (`describe` names other things than samples).
+impl std::fmt::Display for DroppedSamples {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.describe("samples"))
+    }
+}
+
 /// The samples several films kept out (the passes of one render).
 impl std::iter::Sum for DroppedSamples {
     fn sum<I: Iterator<Item = Self>>(iter: I) -> Self {
@@ -87,7 +100,9 @@ impl std::iter::Sum for DroppedSamples {
 
 /// Fractional bits of the film's fixed-point sums: a resolution of 2^-60
 /// keeps every f32 sample above 2^-36 exact and truncates smaller ones by less
-/// than 10^-18, far below what an f32 pixel can show.
+/// than 2^-60 (8.7e-19) each. An f32 pixel can show far less than that
+/// (1e-30), so a scene whose emitters are all that dim reads dark or black
+/// (at emission 1e-16, 7 % dark): it is warned of (`Scene::dim_emission`).
 const FRAC_BITS: i32 = 60;
 /// The largest sample colour the film accepts: 2^48, so that 2^19 - 1 such
 /// samples in one pixel still fit the 127 bits of an i128 sum. Past that a

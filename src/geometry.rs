@@ -118,6 +118,15 @@ impl SurfacePoint {
             offset_ray_origin(self.p, self.p_error, self.n, w)
         }
     }
+
+    /// Whether `q` lies off this point's plane (through `p`, normal `n`) by
+    /// more than the two points' rounding (`p_error`) could move it: if
+    /// not, which side of the plane `q` is on, and so which side of the
+    /// surface a segment to it leaves by, is decided by rounding.
+    #[inline]
+    pub fn clearly_off_plane(&self, q: &SurfacePoint) -> bool {
+        (q.p - self.p).dot(self.n).abs() > self.n.abs().dot(self.p_error + q.p_error)
+    }
 }
 
 /// A shading normal as prism shades with it: `n` normalised and turned to

@@ -113,6 +113,16 @@ pub struct LightLeSample {
 }
 
 impl Light {
+    /// The light's radiance (a point light's intensity) at its brightest
+    /// wavelength.
+    pub fn max_emitted(&self) -> f32 {
+        match self {
+            Light::Area(a) => a.le.max_value(),
+            Light::Point(p) => p.intensity.max_value(),
+            Light::Environment(e) => e.le.max_value(),
+        }
+    }
+
     /// Whether the light's position is a delta distribution (cannot be hit).
     #[inline]
     pub fn is_delta_position(&self) -> bool {

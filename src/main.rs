@@ -548,7 +548,7 @@ fn render_command(a: RenderArgs) -> Result<()> {
     // Every file this render writes, moved into place together at the end.
     let mut out = Outputs::default();
     let (image, mut sidecar, stats) = match (a.passes, &a.strategies) {
-        (Some(k), _) => render_passes(&a, &s, k, &mut out)?,
+        (Some(k), _) => render_pass_mode(&a, &s, k, &mut out)?,
         (None, Some(dir)) => render_strategies(&s, dir, &mut out)?,
         (None, None) => render_samples(&a, &s, &mut out)?,
     };
@@ -653,7 +653,7 @@ fn resume(path: &Path, identity: &Identity, range: &Range<u32>) -> Result<(Film,
 }
 
 /// --passes: K independent renders, their mean and per-pixel variance.
-fn render_passes(
+fn render_pass_mode(
     a: &RenderArgs,
     s: &Setup,
     k: u32,
@@ -745,12 +745,6 @@ fn file_name(path: &Path) -> String {
 /// `what`: "samples", or what else was dropped.
 fn warn_dropped(what: &str, d: &DroppedSamples) {
     if d.total() > 0 {
-        eprintln!(
-            "warning: dropped {} {what} ({} NaN, {} infinite, {} negative); see the sidecar",
-            d.total(),
-            d.nan,
-            d.infinite,
-            d.negative
-        );
+        eprintln!("warning: dropped {}; see the sidecar", d.describe(what));
     }
 }

@@ -238,7 +238,17 @@ const CASES: &[Case] = &[
         args: &[],
         out: "out.exr",
         position: "s.json:5:",
-        words: &["lights[0].radiance: must be at most 2.8147498e14 (2^48), the film's bound on one sample's colour (max 1e15)"],
+        words: &["lights[0].radiance: must be at most 3.5184372e13 (2^45): the film takes one sample's colour up to 2^48, and a colour reaches 7.6 times the spectrum's largest value (max 1e15)"],
+    },
+    Case {
+        // A light path leaving it carried 4 pi I: past f32 at 1e38, and
+        // light tracing lost every path unreported.
+        id: "intensity-past-the-film",
+        edits: &[("{\"type\": \"environment\", \"radiance\": 1.0}", "{\"type\": \"point\", \"position\": [0, 2, 0], \"intensity\": 1e38}")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:5:",
+        words: &["lights[0].intensity: must be at most 3.5184372e13 (2^45)"],
     },
     Case {
         id: "second-environment",

@@ -337,6 +337,12 @@ fn unsupported_features_are_named_errors() {
     v["extensions"]["KHR_lights_punctual"]["lights"][0]["intensity"] = json!(3.4e38);
     let e = parse(&v, "LightsPoint (3.4e38 cd)").err().unwrap();
     assert!(e.contains("\"PointLightRed\": the emitted spectrum is not finite at every wavelength"), "{e}");
+    // Finite, but a light path leaving it carries 4 pi I: past 2^45 it is
+    // refused as a JSON point light's intensity is (light tracing lost
+    // every path of one at 1e38 without a word).
+    v["extensions"]["KHR_lights_punctual"]["lights"][0]["intensity"] = json!(1e20);
+    let e = parse(&v, "LightsPoint (1e20 cd)").err().unwrap();
+    assert!(e.contains("light \"PointLightRed\": the intensity must be at most 3.5184372e13"), "{e}");
     let mut v = read_json(&dir().join("cornell-box.gltf"));
     let light = &mut v["materials"][3];
     light["extras"]["prism"].as_object_mut().unwrap().remove("emission");
@@ -348,12 +354,12 @@ fn unsupported_features_are_named_errors() {
     // measured spectrum of the extras alike (1e15 at its peak).
     v["materials"][3]["extensions"]["KHR_materials_emissive_strength"]["emissiveStrength"] = json!(1e15);
     let e = parse(&v, "cornell-box (emissiveStrength 1e15)").err().unwrap();
-    assert!(e.contains("materials[3] \"light\": the emitted radiance must be at most 2.8147498e14"), "{e}");
+    assert!(e.contains("materials[3] \"light\": the emitted radiance must be at most 3.5184372e13"), "{e}");
     let mut v = read_json(&dir().join("cornell-box.gltf"));
     let emission = &mut v["materials"][3]["extras"]["prism"]["emission"];
     emission["values"] = json!([0.0, 8.0, 15.6, 1e15]);
     let e = parse(&v, "cornell-box (measured emission 1e15)").err().unwrap();
-    assert!(e.contains("materials[3] \"light\": the emitted radiance must be at most 2.8147498e14"), "{e}");
+    assert!(e.contains("materials[3] \"light\": the emitted radiance must be at most 3.5184372e13"), "{e}");
 
     // An accessor's byteOffset near 2^64 does not wrap its end round to
     // the view's start (the indices were read as absent: sequential).

@@ -634,16 +634,7 @@ fn with_noise_floor(mut info: ReferenceInfo, results: &[IntegratorResult], max_d
 /// A note of the samples an integrator's film kept out, if any.
 fn dropped_note(x: &IntegratorResult) -> Option<String> {
     let d = &x.dropped;
-    (d.total() > 0).then(|| {
-        format!(
-            "{}: dropped {} samples ({} NaN, {} infinite, {} negative)",
-            x.label,
-            d.total(),
-            d.nan,
-            d.infinite,
-            d.negative
-        )
-    })
+    (d.total() > 0).then(|| format!("{}: dropped {d}", x.label))
 }
 
 /// Notes on how far a result can be trusted: an exact run or one too short

@@ -157,12 +157,8 @@ fn origin_notes(
     let d = &m.dropped;
     if d.total() > 0 {
         notes.push(format!(
-            "the reference's films dropped {} samples ({} NaN, {} infinite, {} negative): it lacks what they \
-             carried, and the errors measured against it are off by that much",
-            d.total(),
-            d.nan,
-            d.infinite,
-            d.negative
+            "the reference's films dropped {d}: it lacks what they carried, and the errors measured against it \
+             are off by that much"
         ));
     }
     match m.max_depth {

@@ -612,6 +612,8 @@ impl<'a> Importer<'a> {
         // red light has the luminance of the red primary times intensity.
         let spectrum = spectrum::rgb_illuminant(color).scale(intensity);
         self.check_emission(&format!("{label}: light \"{name}\""), &spectrum)?;
+        super::check_radiance(&spectrum)
+            .map_err(|why| self.fail(label, format!("light \"{name}\": the intensity {why}")))?;
         content.lights.push((name, world.translation, spectrum));
         Ok(())
     }

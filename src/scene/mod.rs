@@ -198,20 +198,31 @@ pub fn check_triangle_count(n: usize) -> Result<(), String> {
 }
 
 /// The largest radiance an emitter may give at any wavelength (an area
-/// light, the environment): a camera ray that meets it carries that value
-/// to the film, which refuses sample values past `film::MAX_SAMPLE` (2^48)
-/// as infinite, so the emitter could only be seen as missing samples (an
-/// audit: at 1e20 every estimator's image of a lit room was black, with
-/// 4,000-10,000 samples dropped). Point lights are not capped: what one
-/// brings to a pixel falls with the square of the distance, which the
-/// scene's scale sets.
-pub const MAX_RADIANCE: f32 = crate::film::MAX_SAMPLE;
+/// light, the environment), and the largest intensity of a point light: a
+/// camera ray that meets an emitter carries its radiance to the film, whose
+/// colour conversion multiplies a spectrum's largest value by up to 7.64
+/// (one hero wavelength after dispersive glass, where the wavelength density
+/// is low; 1.67 with four wavelengths: `colour_gain_is_below_eight`), and
+/// the film refuses sample colours past `film::MAX_SAMPLE` (2^48) as
+/// infinite. So 2^45: an emitter seen directly is never dropped. An audit
+/// found 2^48 itself too loose (a lamp of 2e14 in view lost 15 % of the
+/// samples; at 1e20 every estimator's image of a lit room was black). A
+/// point light of intensity I lights a surface at unit distance with
+/// irradiance I, and a light path leaves it with 4 pi I in its throughput:
+/// at 1e38 that overflowed f32 and light tracing lost every path without a
+/// word (session 43).
+pub const MAX_RADIANCE: f32 = crate::film::MAX_SAMPLE / 8.0;
 
-/// Whether emitted radiance `s` is within `MAX_RADIANCE`.
+/// The dimmest brightest emitter a scene is rendered without a warning
+/// (`Scene::dim_emission`): 2^-36, so that a sample carrying 1e-3 of it
+/// still exceeds the film's resolution, 2^-60, by 2^14.
+pub const MIN_EMISSION: f32 = 1.0 / (1u64 << 36) as f32;
+
+/// Whether emitted radiance or intensity `s` is within `MAX_RADIANCE`.
 pub fn check_radiance(s: &Spectrum) -> Result<(), String> {
     match s.max_value() > MAX_RADIANCE {
         true => Err(format!(
-            "must be at most {MAX_RADIANCE:e} (2^48), the film's bound on one sample's colour (max {:e})",
+            "must be at most {MAX_RADIANCE:e} (2^45): the film takes one sample's colour up to 2^48, and a colour reaches 7.6 times the spectrum's largest value (max {:e})",
             s.max_value()
         )),
         false => Ok(()),
@@ -553,12 +564,29 @@ impl Scene {
     }
 
     /// The warnings `render` and `converge` print about the scene itself,
-    /// whatever the estimator: geometry that rounding decides.
+    /// whatever the estimator: geometry that rounding decides, emission the
+    /// film cannot resolve.
     pub fn geometry_warnings(&self) -> Vec<String> {
-        [self.too_small_triangles(), self.emitters_on_surfaces(), self.point_lights_on_surfaces()]
+        [self.too_small_triangles(), self.emitters_on_surfaces(), self.point_lights_on_surfaces(), self.dim_emission()]
             .into_iter()
             .flatten()
             .collect()
+    }
+
+    /// A warning if the scene's brightest emitter (radiance, or a point
+    /// light's intensity, at its brightest wavelength) is below
+    /// `MIN_EMISSION` but not black: the film truncates every sample to its
+    /// resolution of 2^-60 (`film::to_fixed`), which such a scene's samples
+    /// approach (an audit: at emission 1e-16 the image read 7 % dark, at
+    /// 1e-18 black).
+    pub fn dim_emission(&self) -> Option<String> {
+        let brightest = self.lights.iter().map(Light::max_emitted).fold(0.0, f32::max);
+        (brightest > 0.0 && brightest < MIN_EMISSION).then(|| {
+            format!(
+                "the brightest emitter gives at most {brightest:e}, below {MIN_EMISSION:e} (2^-36): the film resolves \
+                 2^-60 per sample and truncates what is finer, so the image reads dark or black (scale the emission up)"
+            )
+        })
     }
 
     /// A warning if triangles are too small for f32 (`too_small_for_f32`):
@@ -631,6 +659,27 @@ mod tests {
     use super::*;
     use crate::materials::Diffuse;
 
+    /// `MAX_RADIANCE`'s margin: over a fine grid of hero wavelengths, a
+    /// spectrum of 1 becomes a film colour of at most 8 in any channel, with
+    /// four wavelengths and with the hero alone (after dispersive glass), so
+    /// a directly seen emitter within `MAX_RADIANCE` stays within the film's
+    /// `MAX_SAMPLE`. The hero alone reaches 7.6 (the margin is not idle).
+    #[test]
+    fn colour_gain_is_below_eight() {
+        use crate::spectrum::{SampledCmf, SampledSpectrum, SampledWavelengths};
+        let gain = |l: &SampledWavelengths| SampledCmf::linear_srgb(l).apply(SampledSpectrum::ONE).abs().max_element();
+        let (mut four, mut hero) = (0f32, 0f32);
+        for k in 0..200_000 {
+            let mut l = SampledWavelengths::sample_visible((k as f32 + 0.5) / 200_000.0);
+            four = four.max(gain(&l));
+            l.terminate_secondary();
+            hero = hero.max(gain(&l));
+        }
+        assert!(four <= 8.0 && hero <= 8.0, "colour gain {four} (four wavelengths), {hero} (hero alone)");
+        assert!(hero > 7.0, "hero alone {hero}");
+        assert_eq!(MAX_RADIANCE * 8.0, crate::film::MAX_SAMPLE);
+    }
+
     /// A light bright enough (4e36 W/sr) that its luminance summed in f32
     /// overflows is still sampled, in proportion to its power, beside a
     /// normal one: an infinite power emptied the light sampler, and every
@@ -648,6 +697,30 @@ mod tests {
             .map(|&u| scene.sample_light(u).expect("no light sampling").0)
             .collect();
         assert_eq!(picks, [1, 1, 1], "the brighter light is chosen (its pmf is ~1)");
+    }
+
+    /// A scene whose brightest emitter is below 2^-36 is warned of, one at
+    /// or above it is not, whatever else is dim, nor a scene with no light.
+    #[test]
+    fn emission_below_the_film_is_warned_of() {
+        let warns = |lights: &[(f32, bool)]| {
+            let camera = Camera::new(Vec3A::new(0.0, 0.0, -5.0), Vec3A::ZERO, Vec3A::Y, 40.0, 8, 8);
+            let mut b = SceneBuilder::new(camera);
+            for &(value, point) in lights {
+                match point {
+                    true => b.point_light("lamp", Vec3A::Y, Spectrum::Constant(value)),
+                    false => b.environment("sky", Spectrum::Constant(value)),
+                };
+            }
+            b.build().dim_emission().is_some()
+        };
+        assert!(warns(&[(1e-17, true)]));
+        assert!(warns(&[(1e-17, false)]));
+        assert!(warns(&[(MIN_EMISSION * 0.99, true), (0.0, false)]));
+        assert!(!warns(&[(MIN_EMISSION, true)]));
+        assert!(!warns(&[(1e-17, true), (1.0, false)]));
+        assert!(!warns(&[(0.0, false)]));
+        assert!(!warns(&[]));
     }
 
     /// Triangles whose normals f32 cannot hold are counted and warned of:
