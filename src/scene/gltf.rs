@@ -205,6 +205,9 @@ struct MappedMaterial {
     /// The name the JSON `materials` override map uses.
     key: String,
     emission: Option<(Spectrum, bool)>,
+    /// The measured reflectance of `extras.prism`, if any (read once, with
+    /// the emission, when the slot is made).
+    reflectance: Option<Spectrum>,
 }
 
 struct Importer<'a> {
@@ -752,7 +755,8 @@ impl<'a> Importer<'a> {
         let label = m.index().map_or_else(|| "default material".to_string(), |i| label("materials", i, m.name()));
         let extras = self.prism_extras(m, &label)?;
         let emission = self.emission(m, &label, extras.emission)?;
-        self.materials.push(MappedMaterial { index: m.index(), label, key: material_key(m), emission });
+        let reflectance = extras.reflectance;
+        self.materials.push(MappedMaterial { index: m.index(), label, key: material_key(m), emission, reflectance });
         let slot = self.materials.len() - 1;
         self.material_slots.insert(m.index(), slot);
         Ok(slot)
@@ -781,14 +785,16 @@ impl<'a> Importer<'a> {
                 Some(i) => doc.materials().nth(i).expect("validated material index"),
                 None => default_material(&doc),
             };
-            let bsdf = self.bsdf(&gm, &self.materials[slot].label.clone());
+            let (label, measured) = (self.materials[slot].label.clone(), self.materials[slot].reflectance.clone());
+            let bsdf = self.bsdf(&gm, &label, measured);
             *id = b.material(&self.materials[slot].key, bsdf);
         }
         ids
     }
 
-    /// The BSDF of a glTF material (rules in the module header).
-    fn bsdf(&mut self, m: &gltf::Material, label: &str) -> Bsdf {
+    /// The BSDF of a glTF material (rules in the module header); `measured`
+    /// is its `extras.prism` reflectance, which replaces the base colour's.
+    fn bsdf(&mut self, m: &gltf::Material, label: &str, measured: Option<Spectrum>) -> Bsdf {
         let pbr = m.pbr_metallic_roughness();
         let factors = [
             ("baseColorFactor", &pbr.base_color_factor()[..]),
@@ -823,9 +829,8 @@ impl<'a> Importer<'a> {
         if m.normal_texture().is_some() {
             self.warn(label, "normalTexture is ignored (the BSDFs have no texture lookup)");
         }
-        let extras = self.prism_extras(m, label).unwrap_or_default();
         let rgb = [base[0], base[1], base[2]];
-        let reflectance = extras.reflectance.unwrap_or_else(|| spectrum::rgb_albedo(rgb));
+        let reflectance = measured.unwrap_or_else(|| spectrum::rgb_albedo(rgb));
         let alpha = roughness_to_alpha(roughness);
         if metallic > 0.0 && metallic < 1.0 {
             let choice = if metallic >= 0.5 { "a conductor" } else { "a non-metal" };
