@@ -737,6 +737,28 @@ fn progress_bar(visible: bool, label: &str, len: u64, unit: &str) -> ProgressBar
 }
 
 /// Renders one integrator progressively; returns its result and final image.
+/// The sample count to render to next, from `n` samples in `seconds`, and
+/// whether it is on the spp grid (`next_grid_spp`, capped at --max-spp) or
+/// cut short by the time budget; None when the run is done: at --max-spp,
+/// past the budget, or with no whole sample left in it.
+fn next_target(cfg: &ConvergeConfig, n: u32, seconds: f64) -> Option<(u32, bool)> {
+    if cfg.max_spp.is_some_and(|m| n >= m) || cfg.time.is_some_and(|t| seconds >= t) {
+        return None;
+    }
+    let target = cfg.max_spp.map_or(next_grid_spp(n), |m| next_grid_spp(n).min(m));
+    if let (Some(t), true) = (cfg.time, n > 0) {
+        // Throughput so far predicts how many more samples fit the budget.
+        let fit = n as f64 + (n as f64 / seconds.max(1e-9) * (t - seconds)).floor();
+        if fit < n as f64 + 1.0 {
+            return None;
+        }
+        if fit < target as f64 {
+            return Some((fit as u32, false));
+        }
+    }
+    Some((target, true))
+}
+
 fn converge_one(
     cfg: &ConvergeConfig,
     scene: &Scene,
@@ -762,24 +784,11 @@ fn converge_one(
             Clock::Wall => wall,
             Clock::Cpu => cpu.unwrap_or(wall),
         };
-        if cfg.max_spp.is_some_and(|m| n >= m) || cfg.time.is_some_and(|t| seconds >= t) {
+        let Some((target, on_grid)) = next_target(cfg, n, seconds) else {
             break;
-        }
-        let mut target = next_grid_spp(n);
-        if let Some(m) = cfg.max_spp {
-            target = target.min(m);
-        }
-        if let (Some(t), true) = (cfg.time, n > 0) {
-            // Throughput so far predicts how many more samples fit the budget.
-            let fit = n as f64 + (n as f64 / seconds.max(1e-9) * (t - seconds)).floor();
-            if fit < n as f64 + 1.0 {
-                break;
-            }
-            if fit < target as f64 {
-                target = fit as u32;
-                by_spp = false;
-            }
-        }
+        };
+        // Once off the grid, every later checkpoint is too.
+        by_spp &= on_grid;
         let cpu0 = process_cpu_seconds();
         let stats = render(scene, integrator, &opts, &mut film, n..target);
         cpu = match (cpu, cpu0, process_cpu_seconds()) {

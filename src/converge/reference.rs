@@ -45,7 +45,10 @@ pub(super) fn obtain_reference(
         }
     };
     match &origin {
-        Some(m) => notes.extend(origin_notes(cfg, scene, file, seed, max_depth, m, &path)?),
+        Some(m) => {
+            check_origin(cfg, scene, seed, m, &path)?;
+            notes.extend(origin_notes(cfg, scene, file, max_depth, m));
+        }
         None => notes.push("the reference has no sidecar: its integrator, spp and noise are unknown".to_string()),
     }
     Ok((image, reference_info(&path, here, origin.as_ref())))
@@ -111,19 +114,9 @@ fn render_reference(
     Ok((image, Origin::of_reference(&meta)))
 }
 
-/// Notes on a reference's origin against the run (another scene, an
-/// estimator that misses paths, another depth); an error when it shares
-/// the run's random streams.
-fn origin_notes(
-    cfg: &ConvergeConfig,
-    scene: &Scene,
-    file: &SceneFile,
-    seed: u64,
-    max_depth: u32,
-    m: &Origin,
-    path: &Path,
-) -> Result<Vec<String>> {
-    let (w, h) = (scene.camera.width, scene.camera.height);
+/// Notes on a reference's origin against the run: another scene, an
+/// estimator that misses paths, dropped samples, another depth.
+fn origin_notes(cfg: &ConvergeConfig, scene: &Scene, file: &SceneFile, max_depth: u32, m: &Origin) -> Vec<String> {
     let mut notes = Vec::new();
     match &m.scene_hash {
         // Another file's content: an edit (a comment, a render default)
@@ -147,13 +140,6 @@ fn origin_notes(
                 .push(format!("the reference's integrator {} cannot sample this scene fully: {warning}", m.integrator));
         }
     }
-    ensure!(
-        (m.width, m.height) == (w, h),
-        "{} is {}x{} but the run renders {w}x{h}",
-        path.display(),
-        m.width,
-        m.height
-    );
     let d = &m.dropped;
     if d.total() > 0 {
         notes.push(format!(
@@ -171,6 +157,20 @@ fn origin_notes(
              run's {max_depth}, they estimate different images"
         )),
     }
+    notes
+}
+
+/// What makes a reference unusable for the run: another image size, or
+/// random streams shared with the run's.
+fn check_origin(cfg: &ConvergeConfig, scene: &Scene, seed: u64, m: &Origin, path: &Path) -> Result<()> {
+    let (w, h) = (scene.camera.width, scene.camera.height);
+    ensure!(
+        (m.width, m.height) == (w, h),
+        "{} is {}x{} but the run renders {w}x{h}",
+        path.display(),
+        m.width,
+        m.height
+    );
     // The run renders samples 0..spp of seed `seed` (the sampler is keyed
     // by seed, pixel and sample index; a run to a time may reach any
     // sample): a reference shares its streams if it used that seed for
@@ -190,7 +190,7 @@ fn origin_notes(
             m.seed.wrapping_add(passes - 1),
         );
     }
-    Ok(notes)
+    Ok(())
 }
 
 /// What the run's results say of the reference.
