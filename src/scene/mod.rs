@@ -353,16 +353,7 @@ impl SceneBuilder {
         let accel = Accel::build_with(start as usize, vertices);
         let slot_mesh = (records.len() <= 1 << 16)
             .then(|| accel.slot_prims().iter().map(|&p| mesh_index(&records, p) as u16).collect());
-        fn area(l: &mut Light) -> Option<&mut AreaLight> {
-            match l {
-                Light::Area(a) => Some(a),
-                _ => None,
-            }
-        }
-        let prims: Vec<u32> = lights.iter_mut().filter_map(area).map(|a| a.prim).collect();
-        for (a, slot) in lights.iter_mut().filter_map(area).zip(accel.slots_of(&prims)) {
-            a.slot = slot;
-        }
+        assign_light_slots(&mut lights, &accel);
         let degenerate: Vec<(u32, [Vec3A; 3])> =
             accel.degenerate().iter().map(|&i| (i, vertices(i as usize))).collect();
         let too_small = (0..start as usize).filter(|&i| too_small_for_f32(&vertices(i))).count();
@@ -373,10 +364,7 @@ impl SceneBuilder {
                 record.shading = Some((mesh.indices, mesh.normals));
             }
         }
-        let (lo, hi) = accel.bounds();
-        let (lo, hi) = (lo.min(self.camera.position), hi.max(self.camera.position));
-        let center = (lo + hi) * 0.5;
-        let radius = ((hi - lo).length() * 0.5).max(1e-3);
+        let (center, radius) = bounding_sphere(&accel, self.camera.position);
         let mut environment = None;
         for (mut light, name) in self.lights {
             if let Light::Environment(e) = &mut light {
@@ -407,6 +395,28 @@ impl SceneBuilder {
             render_shift,
         }
     }
+}
+
+/// Gives each area light its triangle's BVH slot.
+fn assign_light_slots(lights: &mut [Light], accel: &Accel) {
+    fn area(l: &mut Light) -> Option<&mut AreaLight> {
+        match l {
+            Light::Area(a) => Some(a),
+            _ => None,
+        }
+    }
+    let prims: Vec<u32> = lights.iter_mut().filter_map(area).map(|a| a.prim).collect();
+    for (a, slot) in lights.iter_mut().filter_map(area).zip(accel.slots_of(&prims)) {
+        a.slot = slot;
+    }
+}
+
+/// Centre and radius of a sphere around the geometry and the camera (the
+/// environment's disk of light-path origins; a radius of at least 1e-3).
+fn bounding_sphere(accel: &Accel, camera: Vec3A) -> (Vec3A, f32) {
+    let (lo, hi) = accel.bounds();
+    let (lo, hi) = (lo.min(camera), hi.max(camera));
+    ((lo + hi) * 0.5, ((hi - lo).length() * 0.5).max(1e-3))
 }
 
 /// One area light per triangle of the emitting `mesh` (its first triangle
