@@ -191,7 +191,8 @@ fn light_tracing(
 }
 
 /// s = 1: a fresh light sample joined to z_{t-1} (next-event estimation);
-/// that light vertex replaces y_0 in the MIS weight.
+/// that light vertex replaces y_0 in the MIS weight. Not to a point of an
+/// emitter whose side rounding decides (`SurfacePoint::sides_resolved`).
 fn next_event(
     scene: &Scene,
     light: &[Vertex],
@@ -223,7 +224,7 @@ fn next_event(
     let g = q.segment_to(pt)?;
     let sp = pt.scatter(scene, -g.w, lambda, TransportMode::Radiance);
     let l = pt.beta * sp.f * q.beta * g.w.dot(pt.si.frame.n).abs();
-    if l.is_black() {
+    if l.is_black() || (!source.is_infinite() && !pt.si.point().sides_resolved(&ls.point())) {
         return None;
     }
     if !scene.visible(&source.shadow(pt.si.point(), &ls)) {
@@ -235,13 +236,8 @@ fn next_event(
 }
 
 /// s, t >= 2: y_{s-1} joined to z_{t-1} by a shadow ray, with
-/// G = |cos||cos| / d^2 (shading normals). Not when either end lies within
-/// rounding of the other's plane: in exact arithmetic G is 0 there (both on
-/// one plane) or nearly so (both near an edge), while in f32 the sides the
-/// segment leaves by are decided by rounding, and the shadow ray, which
-/// skips both end triangles (and their coplanar neighbours), cannot see it
-/// pass through the surface: a light inside a closed shell lit the outside
-/// of the shell through such connections (an audit, session 43).
+/// G = |cos||cos| / d^2 (shading normals); not when rounding decides which
+/// side of its surface either end leaves by (`SurfacePoint::sides_resolved`).
 fn vertex_connection(
     scene: &Scene,
     light: &[Vertex],
@@ -255,7 +251,7 @@ fn vertex_connection(
         return None;
     }
     let (ends_q, ends_p) = (qs.si.point(), pt.si.point());
-    if !ends_q.clearly_off_plane(&ends_p) || !ends_p.clearly_off_plane(&ends_q) {
+    if !ends_q.sides_resolved(&ends_p) {
         return None;
     }
     let g = qs.segment_to(pt)?;

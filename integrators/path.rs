@@ -194,7 +194,8 @@ fn next_event(
     };
     let wi = si.frame.to_local(ls.wi);
     let f = bsdf.eval(wo, wi, lambda, TransportMode::Radiance) * wi.z.abs();
-    if f.is_black() {
+    // Not to a point whose side of the emitter rounding decides.
+    if f.is_black() || (!light.is_infinite() && !si.point().sides_resolved(&ls.point())) {
         return SampledSpectrum::ZERO;
     }
     if !scene.visible(&light.shadow(si.point(), &ls)) {

@@ -100,9 +100,10 @@ impl std::iter::Sum for DroppedSamples {
 
 /// Fractional bits of the film's fixed-point sums: a resolution of 2^-60
 /// keeps every f32 sample above 2^-36 exact and truncates smaller ones by less
-/// than 2^-60 (8.7e-19) each. An f32 pixel can show far less than that
-/// (1e-30), so a scene whose emitters are all that dim reads dark or black
-/// (at emission 1e-16, 7 % dark): it is warned of (`Scene::dim_emission`).
+/// than 2^-60 (8.7e-19) each. An f32 pixel can show far less (down to
+/// 1.2e-38), so a scene whose samples are mostly that small reads dark or
+/// black (at emission 1e-16, 7 % dark): one whose brightest emitter is
+/// below 2^-36 is warned of (`Scene::dim_emission`).
 const FRAC_BITS: i32 = 60;
 /// The largest sample colour the film accepts: 2^48, so that 2^19 - 1 such
 /// samples in one pixel still fit the 127 bits of an i128 sum. Past that a

@@ -243,12 +243,12 @@ const CASES: &[Case] = &[
     Case {
         // A light path leaving it carried 4 pi I: past f32 at 1e38, and
         // light tracing lost every path unreported.
-        id: "intensity-past-the-film",
+        id: "intensity-past-f32",
         edits: &[("{\"type\": \"environment\", \"radiance\": 1.0}", "{\"type\": \"point\", \"position\": [0, 2, 0], \"intensity\": 1e38}")],
         args: &[],
         out: "out.exr",
         position: "s.json:5:",
-        words: &["lights[0].intensity: must be at most 3.5184372e13 (2^45)"],
+        words: &["lights[0].intensity: must be at most 1.2676506e30 (2^100): a light path leaves a point light with 4 pi times it in its throughput"],
     },
     Case {
         id: "second-environment",

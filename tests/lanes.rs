@@ -23,15 +23,18 @@ fn start(pixel: u64, s: u64) -> (Sampler, SampledWavelengths) {
 /// for bit, and lanes past the samples are zero. On the Cornell box, and on
 /// its dispersive variant, where a lane's glass hit terminates its
 /// secondary wavelengths and the packet must hand them back per lane (the
-/// film converts each sample with its own). (Control: with the camera rays
+/// film converts each sample with its own). (Controls: with the camera rays
 /// made in reverse lane order, every multi-sample packet differs, and this
-/// test failed.)
+/// test failed; with each lane tracing a copy of its wavelengths, it failed
+/// on the dispersive box.)
 #[test]
 fn path_lanes_equal_samples_taken_alone() {
     let info = INTEGRATORS.iter().find(|i| i.name == "path").expect("path is registered");
     let path = (info.create)(&IntegratorOptions::default());
     let mut ws = Workspace::default();
-    for (file, dispersive) in [("cornell-box", false), ("cornell-dispersion", true)] {
+    // (scene, dispersive, 1 / the least share of non-zero samples: 637
+    // of the dispersive box's 1342 are, against 1069 of the plain box's)
+    for (file, dispersive, share) in [("cornell-box", false, 2), ("cornell-dispersion", true, 4)] {
         let scene = load_scene(Path::new(&format!("scenes/{file}.json"))).unwrap_or_else(|e| panic!("{e}")).build();
         let (w, h) = (scene.camera.width as u64, scene.camera.height as u64);
         let (mut samples, mut nonzero, mut terminated) = (0, 0, 0);
@@ -51,7 +54,7 @@ fn path_lanes_equal_samples_taken_alone() {
             }
             assert!(lanes[n..].iter().all(|l| *l == SampledSpectrum::ZERO), "{file}: lanes past the samples");
         }
-        assert!(nonzero > samples / 4, "{file}: {nonzero} of {samples} samples non-zero: too few to test");
+        assert!(nonzero > samples / share, "{file}: {nonzero} of {samples} samples non-zero: too few to test");
         if dispersive {
             assert!(terminated >= 20, "{file}: {terminated} of {samples} samples met the glass: too few");
         }

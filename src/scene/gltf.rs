@@ -615,8 +615,9 @@ impl<'a> Importer<'a> {
         // red light has the luminance of the red primary times intensity.
         let spectrum = spectrum::rgb_illuminant(color).scale(intensity);
         self.check_emission(&format!("{label}: light \"{name}\""), &spectrum)?;
-        super::check_radiance(&spectrum)
-            .map_err(|why| self.fail(label, format!("light \"{name}\": the intensity {why}")))?;
+        super::check_intensity(&spectrum).map_err(|why| {
+            self.fail(label, format!("light \"{name}\": its spectrum (colour x intensity) as an intensity {why}"))
+        })?;
         content.lights.push((name, world.translation, spectrum));
         Ok(())
     }

@@ -839,7 +839,7 @@ impl<'a> Ctx<'a> {
     }
 
     /// An emitted radiance (an object's `emission`, an environment's
-    /// `radiance`) or a point light's `intensity`, at most `MAX_RADIANCE`.
+    /// `radiance`), at most `MAX_RADIANCE`.
     fn radiance(&self, path: &[Seg], spec: &SpectrumSpec) -> Result<Spectrum, LoadError> {
         let s = self.spectrum(path, spec, Use::Emission)?;
         super::check_radiance(&s).map_err(|why| self.err(path, why))?;
@@ -1267,7 +1267,9 @@ fn lights(ctx: &Ctx, b: &mut SceneBuilder, lights: &[LightSpec]) -> Result<(), L
         match l {
             LightSpec::Point(p) => {
                 let pos = ctx.vec3(&with(&path, "position"), p.position)?;
-                let intensity = ctx.radiance(&with(&path, "intensity"), &p.intensity)?;
+                let at = with(&path, "intensity");
+                let intensity = ctx.spectrum(&at, &p.intensity, Use::Emission)?;
+                super::check_intensity(&intensity).map_err(|why| ctx.err(&at, why))?;
                 b.point_light(p.name.as_deref().unwrap_or("point light"), pos, intensity);
             }
             LightSpec::Environment(e) => {

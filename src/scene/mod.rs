@@ -198,31 +198,47 @@ pub fn check_triangle_count(n: usize) -> Result<(), String> {
 }
 
 /// The largest radiance an emitter may give at any wavelength (an area
-/// light, the environment), and the largest intensity of a point light: a
-/// camera ray that meets an emitter carries its radiance to the film, whose
-/// colour conversion multiplies a spectrum's largest value by up to 7.64
-/// (one hero wavelength after dispersive glass, where the wavelength density
-/// is low; 1.67 with four wavelengths: `colour_gain_is_below_eight`), and
-/// the film refuses sample colours past `film::MAX_SAMPLE` (2^48) as
-/// infinite. So 2^45: an emitter seen directly is never dropped. An audit
-/// found 2^48 itself too loose (a lamp of 2e14 in view lost 15 % of the
-/// samples; at 1e20 every estimator's image of a lit room was black). A
-/// point light of intensity I lights a surface at unit distance with
-/// irradiance I, and a light path leaves it with 4 pi I in its throughput:
-/// at 1e38 that overflowed f32 and light tracing lost every path without a
-/// word (session 43).
+/// light, the environment): a camera ray that meets an emitter carries its
+/// radiance to the film, whose colour conversion multiplies a spectrum's
+/// largest value by up to 7.64 (one hero wavelength after dispersive glass,
+/// where the wavelength density is low; four wavelengths give less:
+/// `colour_gain_is_below_eight`), and the film refuses sample colours past
+/// `film::MAX_SAMPLE` (2^48) as infinite. So 2^48 / 8: an emitter that a
+/// camera ray meets is never dropped. An audit found 2^48 itself too loose
+/// (a lamp of 2e14 in view lost 15 % of the samples; at 1e20 every
+/// estimator's image of a lit room was black).
 pub const MAX_RADIANCE: f32 = crate::film::MAX_SAMPLE / 8.0;
 
-/// The dimmest brightest emitter a scene is rendered without a warning
-/// (`Scene::dim_emission`): 2^-36, so that a sample carrying 1e-3 of it
-/// still exceeds the film's resolution, 2^-60, by 2^14.
+/// The dimmest brightest radiance a scene without point lights is rendered
+/// without a warning (`Scene::dim_emission`): 2^-36, so that a sample
+/// carrying 1e-3 of it still exceeds the film's resolution, 2^-60, by 2^14.
 pub const MIN_EMISSION: f32 = 1.0 / (1u64 << 36) as f32;
 
-/// Whether emitted radiance or intensity `s` is within `MAX_RADIANCE`.
+/// Whether emitted radiance `s` is within `MAX_RADIANCE`.
 pub fn check_radiance(s: &Spectrum) -> Result<(), String> {
     match s.max_value() > MAX_RADIANCE {
         true => Err(format!(
             "must be at most {MAX_RADIANCE:e} (2^45): the film takes one sample's colour up to 2^48, and a colour reaches 7.6 times the spectrum's largest value (max {:e})",
+            s.max_value()
+        )),
+        false => Ok(()),
+    }
+}
+
+/// The largest intensity a point light may give at any wavelength: a light
+/// path leaves it with 4 pi I over its selection probability in its
+/// throughput, which at 1e38 passed f32, and light tracing lost every path
+/// without a word (an audit, session 43); 2^100 leaves that product 2^24
+/// of room below f32::MAX. The film's bound does not apply: what a point
+/// light brings to a pixel falls with the square of the distance, which
+/// the scene's scale sets (a sun 1e6 units away wants ~1e15).
+pub const MAX_INTENSITY: f32 = (1u128 << 100) as f32;
+
+/// Whether a point light's intensity `s` is within `MAX_INTENSITY`.
+pub fn check_intensity(s: &Spectrum) -> Result<(), String> {
+    match s.max_value() > MAX_INTENSITY {
+        true => Err(format!(
+            "must be at most {MAX_INTENSITY:e} (2^100): a light path leaves a point light with 4 pi times it in its throughput, which must stay within f32 (max {:e})",
             s.max_value()
         )),
         false => Ok(()),
@@ -583,13 +599,17 @@ impl Scene {
             .collect()
     }
 
-    /// A warning if the scene's brightest emitter (radiance, or a point
-    /// light's intensity, at its brightest wavelength) is below
-    /// `MIN_EMISSION` but not black: the film truncates every sample to its
-    /// resolution of 2^-60 (`film::to_fixed`), which such a scene's samples
-    /// approach (an audit: at emission 1e-16 the image read 7 % dark, at
-    /// 1e-18 black).
+    /// A warning if the scene's brightest emitter (its radiance at its
+    /// brightest wavelength) is below `MIN_EMISSION` but not black: the film
+    /// truncates every sample to its resolution of 2^-60 (`film::to_fixed`),
+    /// which such a scene's samples approach (an audit: at emission 1e-16
+    /// the image read 7 % dark, at 1e-18 black). Not for a scene with point
+    /// lights, whose intensity is no radiance: what one brings to a pixel
+    /// depends on the scene's scale.
     pub fn dim_emission(&self) -> Option<String> {
+        if self.lights.iter().any(Light::is_delta_position) {
+            return None;
+        }
         let brightest = self.lights.iter().map(Light::max_emitted).fold(0.0, f32::max);
         (brightest > 0.0 && brightest < MIN_EMISSION).then(|| {
             format!(
@@ -710,7 +730,8 @@ mod tests {
     }
 
     /// A scene whose brightest emitter is below 2^-36 is warned of, one at
-    /// or above it is not, whatever else is dim, nor a scene with no light.
+    /// or above it is not, nor a scene with a point light (its intensity
+    /// says nothing of a pixel's value without the scene's scale) or none.
     #[test]
     fn emission_below_the_film_is_warned_of() {
         let warns = |lights: &[(f32, bool)]| {
@@ -724,11 +745,11 @@ mod tests {
             }
             b.build().dim_emission().is_some()
         };
-        assert!(warns(&[(1e-17, true)]));
         assert!(warns(&[(1e-17, false)]));
-        assert!(warns(&[(MIN_EMISSION * 0.99, true), (0.0, false)]));
-        assert!(!warns(&[(MIN_EMISSION, true)]));
-        assert!(!warns(&[(1e-17, true), (1.0, false)]));
+        assert!(warns(&[(MIN_EMISSION * 0.99, false)]));
+        assert!(!warns(&[(MIN_EMISSION, false)]));
+        assert!(!warns(&[(1e-17, true)]));
+        assert!(!warns(&[(1e-17, false), (1e-17, true)]));
         assert!(!warns(&[(0.0, false)]));
         assert!(!warns(&[]));
     }
