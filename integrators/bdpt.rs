@@ -191,8 +191,7 @@ fn light_tracing(
 }
 
 /// s = 1: a fresh light sample joined to z_{t-1} (next-event estimation);
-/// that light vertex replaces y_0 in the MIS weight. Not to a point of an
-/// emitter whose side rounding decides (`SurfacePoint::sides_resolved`).
+/// that light vertex replaces y_0 in the MIS weight.
 fn next_event(
     scene: &Scene,
     light: &[Vertex],
@@ -224,7 +223,7 @@ fn next_event(
     let g = q.segment_to(pt)?;
     let sp = pt.scatter(scene, -g.w, lambda, TransportMode::Radiance);
     let l = pt.beta * sp.f * q.beta * g.w.dot(pt.si.frame.n).abs();
-    if l.is_black() || (!source.is_infinite() && !pt.si.point().sides_resolved(&ls.point())) {
+    if l.is_black() {
         return None;
     }
     if !scene.visible(&source.shadow(pt.si.point(), &ls)) {
@@ -236,8 +235,7 @@ fn next_event(
 }
 
 /// s, t >= 2: y_{s-1} joined to z_{t-1} by a shadow ray, with
-/// G = |cos||cos| / d^2 (shading normals); not when rounding decides which
-/// side of its surface either end leaves by (`SurfacePoint::sides_resolved`).
+/// G = |cos||cos| / d^2 (shading normals).
 fn vertex_connection(
     scene: &Scene,
     light: &[Vertex],
@@ -250,10 +248,6 @@ fn vertex_connection(
     if !qs.connectible || !pt.connectible {
         return None;
     }
-    let (ends_q, ends_p) = (qs.si.point(), pt.si.point());
-    if !ends_q.sides_resolved(&ends_p) {
-        return None;
-    }
     let g = qs.segment_to(pt)?;
     let sp = pt.scatter(scene, -g.w, lambda, TransportMode::Radiance);
     if sp.f.is_black() {
@@ -262,7 +256,7 @@ fn vertex_connection(
     let sq = qs.scatter(scene, g.w, lambda, TransportMode::Importance);
     let geometry = qs.si.frame.n.dot(g.w).abs() * pt.si.frame.n.dot(g.w).abs() * g.inv_d2;
     let l = qs.beta * sq.f * sp.f * pt.beta * geometry;
-    if l.is_black() || !scene.unoccluded(ends_q, ends_p) {
+    if l.is_black() || !scene.unoccluded(qs.si.point(), pt.si.point()) {
         return None;
     }
     Connection::new(l, Reverse::connection(qs, &sq, pt, &sp, &g), light, camera, None, s, t)

@@ -194,8 +194,7 @@ fn next_event(
     };
     let wi = si.frame.to_local(ls.wi);
     let f = bsdf.eval(wo, wi, lambda, TransportMode::Radiance) * wi.z.abs();
-    // Not to a point whose side of the emitter rounding decides.
-    if f.is_black() || (!light.is_infinite() && !si.point().sides_resolved(&ls.point())) {
+    if f.is_black() {
         return SampledSpectrum::ZERO;
     }
     if !scene.visible(&light.shadow(si.point(), &ls)) {

@@ -160,11 +160,17 @@ pub fn shading_normal(n: Vec3A, ng: Vec3A) -> Vec3A {
 }
 
 /// A shadow ray, the test of whether light passes between two points or
-/// from a point to infinity: nothing may block `ray` in (0, t_max).
+/// from a point to infinity: nothing may block `ray` in (0, t_max), and a
+/// segment's ends must leave their surfaces by sides rounding cannot flip
+/// (`ends_resolved`).
 #[derive(Clone, Copy, Debug)]
 pub struct Shadow {
     pub ray: Ray,
     pub t_max: f32,
+    /// `SurfacePoint::sides_resolved` of a segment's ends (true for a ray
+    /// to infinity): if not, the segment counts as blocked, since it may
+    /// cross the very surfaces it skips.
+    pub ends_resolved: bool,
 }
 
 impl Shadow {
@@ -188,19 +194,24 @@ impl Shadow {
     /// at the far end, t ~ 1, the floor blocked the segment or not by
     /// rounding (a lamp on the floor lit 12 % less by NEE than by light
     /// tracing).
+    ///
+    /// Skipping the end triangles assumes each end leaves its surface by
+    /// the side the segment points to; where rounding decides that side
+    /// (`SurfacePoint::sides_resolved`), the segment is blocked.
     #[inline(always)]
     pub fn segment(a: SurfacePoint, b: SurfacePoint) -> Self {
         let (a, b) = if b.n == Vec3A::ZERO && a.n != Vec3A::ZERO { (b, a) } else { (a, b) };
         let d = b.p - a.p;
         let o = a.spawn_origin(d);
         let target = b.spawn_origin(-d);
-        Self { ray: Ray { o, d: target - o, skip: [a.slot, b.slot] }, t_max: 1.0 }
+        let ray = Ray { o, d: target - o, skip: [a.slot, b.slot] };
+        Self { ray, t_max: 1.0, ends_resolved: a.sides_resolved(&b) }
     }
 
     /// From a point towards infinity in direction `w` (an infinite light).
     #[inline]
     pub fn escape(a: SurfacePoint, w: Vec3A) -> Self {
-        Self { ray: a.spawn_ray(w), t_max: f32::INFINITY }
+        Self { ray: a.spawn_ray(w), t_max: f32::INFINITY, ends_resolved: true }
     }
 }
 

@@ -910,11 +910,12 @@ fn a_far_scene_renders_as_at_the_origin() {
 /// vertex connections lit 776-823 of the cube's 1024 pixels over four
 /// seeds (up to 1.3e-4 on the icosphere), and next-event estimation to the
 /// emitting shell's own faces lit the room under path and bdpt (a review).
-/// The control: this test without `SurfacePoint::sides_resolved` in
-/// bdpt's `vertex_connection` and `next_event` and in path's `next_event`.
-/// Not covered: an emitting cube wound inward still lights one pixel under
-/// path (6.6e-4 at 64 spp, with or without the guard), by a BSDF-sampled
-/// ray grazing a convex edge, which rounding sends inside. Shading normals
+/// The control: this test without the `ends_resolved` test of
+/// `Scene::visible` (`Shadow::segment`), which every connection's shadow
+/// segment passes. Not covered: an emitting cube wound inward still lights
+/// one pixel under path (6.6e-4 at 64 spp, with or without the guard),
+/// likely by a BSDF-sampled ray grazing a convex edge that rounding sends
+/// inside (not traced). Shading normals
 /// let light through by design (docs/scene-format.md), so the shells are
 /// flat.
 #[test]

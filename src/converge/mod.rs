@@ -736,7 +736,6 @@ fn progress_bar(visible: bool, label: &str, len: u64, unit: &str) -> ProgressBar
     bar
 }
 
-/// Renders one integrator progressively; returns its result and final image.
 /// The sample count to render to next, from `n` samples in `seconds`, and
 /// whether it is on the spp grid (`next_grid_spp`, capped at --max-spp) or
 /// cut short by the time budget; None when the run is done: at --max-spp,
@@ -759,6 +758,7 @@ fn next_target(cfg: &ConvergeConfig, n: u32, seconds: f64) -> Option<(u32, bool)
     Some((target, true))
 }
 
+/// Renders one integrator progressively; returns its result and final image.
 fn converge_one(
     cfg: &ConvergeConfig,
     scene: &Scene,

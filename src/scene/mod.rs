@@ -543,9 +543,13 @@ impl Scene {
         self.visible(&Shadow::segment(a, b))
     }
 
-    /// Whether nothing blocks a shadow ray.
+    /// Whether nothing blocks a shadow ray (a segment whose ends' sides
+    /// rounding decides is blocked, and not traced: `Shadow::segment`).
     #[inline(always)]
     pub fn visible(&self, shadow: &Shadow) -> bool {
+        if !shadow.ends_resolved {
+            return false;
+        }
         count_rays(1);
         !self.accel.occluded(&shadow.ray, shadow.t_max)
     }
