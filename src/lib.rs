@@ -10,6 +10,7 @@ pub mod film;
 pub mod geometry;
 pub mod light;
 pub mod mitsuba;
+pub mod output;
 pub mod path;
 pub mod reference;
 pub mod render;

@@ -4,11 +4,11 @@ use anyhow::{anyhow, bail, ensure, Context, Result};
 use clap::{Parser, Subcommand};
 use prism::accel::LANES;
 use prism::camera::Camera;
-use prism::film::{
-    self, check_no_stale_state, check_outputs, check_sidecar_target, check_writable, ensure_exr, resolve_path,
-    DroppedSamples, Film, Outputs,
-};
+use prism::film::{DroppedSamples, Film};
 use prism::integrators::{self, Integrator, IntegratorOptions, MisHeuristic, INTEGRATORS};
+use prism::output::{
+    self, check_no_stale_state, check_outputs, check_sidecar_target, check_writable, ensure_exr, resolve_path, Outputs,
+};
 use prism::render::{
     check_threads, is_strategy_image, render_chunked, render_with_strategies, RenderOptions, RenderStats,
     StrategyImages,
@@ -372,10 +372,10 @@ fn at_least(flag: &str, value: u32, min: u32, why: &str) -> Result<()> {
 }
 
 fn compare_command(image: &Path, reference: &Path) -> Result<()> {
-    let (w, h, a) = film::read_exr(image)?;
-    let (rw, rh, b) = film::read_exr(reference)?;
-    film::ensure_finite(image, w, &a)?;
-    film::ensure_finite(reference, rw, &b)?;
+    let (w, h, a) = output::read_exr(image)?;
+    let (rw, rh, b) = output::read_exr(reference)?;
+    output::ensure_finite(image, w, &a)?;
+    output::ensure_finite(reference, rw, &b)?;
     if (w, h) != (rw, rh) {
         bail!("{} is {w}x{h} but {} is {rw}x{rh}", image.display(), reference.display());
     }
@@ -390,7 +390,7 @@ fn compare_command(image: &Path, reference: &Path) -> Result<()> {
 /// The table's file must be a .bin: `--out scene.json` replaced a scene
 /// with binary data.
 fn rgb_table(res: usize, out: &Path) -> Result<()> {
-    film::ensure_extension("--out", out, "bin")?;
+    output::ensure_extension("--out", out, "bin")?;
     // Before the minutes of fitting, not after.
     check_new_outputs(&[], &[("--out", out)])?;
     prism::spectrum::RgbToSpectrumTable::generate(res).write(out)
@@ -459,7 +459,7 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
 fn check_render_outputs(a: &RenderArgs) -> Result<()> {
     ensure_exr("--out", &a.out)?;
     if let Some(png) = &a.png {
-        film::ensure_extension("--png", png, "png")?;
+        output::ensure_extension("--png", png, "png")?;
     }
     if !writes_state(a) {
         check_no_stale_state(&a.out, ", or render the part with --sample-range A..B")?;

@@ -44,10 +44,10 @@
 //! | --spp    | 64           | samples per pixel (`$spp`)               |
 
 use crate::camera::Camera;
-use crate::film::Outputs;
 use crate::geometry::shading_normal;
 use crate::light::Light;
 use crate::materials::Bsdf;
+use crate::output::Outputs;
 use crate::scene::{load_scene, Scene};
 use crate::spectrum::{Spectrum, LAMBDA_MAX, LAMBDA_MIN};
 use anyhow::{anyhow, bail, ensure, Context, Result};

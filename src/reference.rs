@@ -5,8 +5,9 @@
 //! converge` reads it), and where the numbers came from (integrator, spp, passes, seed, commit,
 //! wall time). Made by `prism reference`; read by tests/agreement.rs.
 
-use crate::film::{read_exr, DroppedSamples, Film, Outputs};
+use crate::film::{DroppedSamples, Film};
 use crate::integrators::{effective_mis, Integrator, IntegratorOptions};
+use crate::output::{read_exr, Outputs};
 use crate::render::RenderOptions;
 use crate::render_state::SceneFile;
 use crate::scene::Scene;

@@ -25,8 +25,9 @@
 //! integrator's check costs one branch.
 
 use crate::accel::LANES;
-use crate::film::{add_fixed, to_fixed, DroppedSamples, Film, Outputs};
+use crate::film::{add_fixed, to_fixed, DroppedSamples, Film};
 use crate::integrators::Integrator;
+use crate::output::Outputs;
 use crate::sampling::Sampler;
 use crate::scene::Scene;
 use crate::spectrum::{SampledCmf, SampledSpectrum, SampledWavelengths};

@@ -21,7 +21,8 @@
 //! Loading checks all of it, so a truncated, corrupt or foreign file is a
 //! clear error rather than a wrong image.
 
-use crate::film::{write_bytes, DroppedSamples, Film};
+use crate::film::{DroppedSamples, Film};
+use crate::output::write_bytes;
 use anyhow::{bail, ensure, Context, Result};
 use serde::{Deserialize, Serialize};
 use std::ops::Range;

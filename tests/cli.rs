@@ -593,7 +593,7 @@ fn small_subcommands_refuse_before_writing() {
     assert!(!d.join("fresh").exists());
 
     let image = |name: &str, v: f32| {
-        prism::film::write_exr(&d.join(name), 2, 1, &[[0.5; 3], [v; 3]]).unwrap();
+        prism::output::write_exr(&d.join(name), 2, 1, &[[0.5; 3], [v; 3]]).unwrap();
         path(name)
     };
     let (one, nan) = (image("one.exr", 1.0), image("nan.exr", f32::NAN));
@@ -645,7 +645,7 @@ fn references_take_the_estimators_options() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("--mis sets bdpt's heuristic; path reads none"), "{}", stderr(&o));
     assert_eq!(read_json(&out.with_extension("json"))["max_depth"], 2);
-    let (_, _, pixels) = prism::film::read_exr(&out).unwrap();
+    let (_, _, pixels) = prism::output::read_exr(&out).unwrap();
     // Luminance: the room's spectra are constant.
     let y = |p: &[f32; 3]| prism::stats::luminance(p.map(f64::from));
     let mean = pixels.iter().map(y).sum::<f64>() / pixels.len() as f64;

@@ -9,7 +9,7 @@ mod scenes;
 use scenes::temp_dir;
 
 use prism::converge::{run, Clock, ConvergeConfig, ConvergeResults, IntegratorSpec, ReferenceSource};
-use prism::film::write_exr;
+use prism::output::write_exr;
 use prism::spectrum::Spectrum;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};

@@ -59,7 +59,7 @@ fn render(integrator: &str, seed: u64, samples: &[&str], out: &Path) {
 }
 
 fn read_exr(p: &Path) -> Vec<[f32; 3]> {
-    prism::film::read_exr(p).unwrap().2
+    prism::output::read_exr(p).unwrap().2
 }
 
 fn sidecar(exr: &Path) -> serde_json::Value {

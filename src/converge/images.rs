@@ -2,7 +2,7 @@
 //! false-colour per-pixel errors, composed side by side with captions.
 
 use super::chart::{svg_to_png, xml_escape};
-use crate::film::srgb8;
+use crate::output::srgb8;
 use anyhow::{Context, Result};
 use image::{Rgb, RgbImage};
 

@@ -38,7 +38,7 @@
 //! ratios are then pulled towards 1), a reference rendered from another
 //! scene file, and one whose integrator cannot sample the whole scene (it is
 //! biased, and every error measured against it). No output may replace the
-//! scene, the reference or another output (`film::check_outputs`).
+//! scene, the reference or another output (`output::check_outputs`).
 //!
 //! Integrator specs: `name` or `name:heuristic` (`bdpt:uniform`), so one run
 //! can compare MIS heuristics of the same estimator as separate lines;
@@ -73,8 +73,9 @@
 //! | --save-exr               | off            | also write each final image as `DIR/<label>.exr`    |
 
 use crate::camera::Camera;
-use crate::film::{check_no_stale_state, check_outputs, check_writable, ensure_exr, DroppedSamples, Film};
+use crate::film::{DroppedSamples, Film};
 use crate::integrators::{self, IntegratorOptions, MisHeuristic, INTEGRATORS};
+use crate::output::{check_no_stale_state, check_outputs, check_writable, ensure_exr};
 use crate::render::{render, RenderOptions};
 use crate::render_state::SceneFile;
 use crate::scene::{load_scene, Scene};
@@ -709,7 +710,7 @@ fn check_converge_outputs(cfg: &ConvergeConfig) -> Result<()> {
     let outputs: Vec<(&str, &Path)> = outputs.iter().map(|(r, p)| (*r, p.as_path())).collect();
     check_outputs(&inputs, &outputs)?;
     if let ReferenceSource::Render { out, .. } = &cfg.reference {
-        crate::film::check_sidecar_target(&out.with_extension("json"))?;
+        crate::output::check_sidecar_target(&out.with_extension("json"))?;
     }
     Ok(())
 }

@@ -3,8 +3,9 @@
 //! its origin and its own noise.
 
 use super::{spinner, ConvergeConfig, ReferenceInfo, ReferenceSource, REFERENCE_SEED_OFFSET};
-use crate::film::{ensure_finite, read_exr, DroppedSamples};
+use crate::film::DroppedSamples;
 use crate::integrators::{self, IntegratorOptions, MisHeuristic};
+use crate::output::{ensure_finite, read_exr};
 use crate::reference::{make_reference, write_reference, ReferenceMeta};
 use crate::render_state::SceneFile;
 use crate::scene::Scene;

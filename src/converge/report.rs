@@ -1,11 +1,11 @@
 //! The files a run writes: results.csv, results.json, report.md, the
 //! charts, the image panels and (`--save-exr`) the final images, moved into
-//! place together (`film::Outputs`): all of them or none.
+//! place together (`output::Outputs`): all of them or none.
 
 use super::chart::{chart_svg, svg_to_png, Axis};
 use super::images::{auto_exposure, compose, error_range, false_colour, pixel_errors, tonemap};
 use super::{Clock, ConvergeConfig, ConvergeResults};
-use crate::film::{encode_png, Outputs};
+use crate::output::{encode_png, Outputs};
 use anyhow::Result;
 use image::RgbImage;
 use std::fmt::Write as _;

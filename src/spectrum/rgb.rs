@@ -158,9 +158,9 @@ impl RgbToSpectrumTable {
 
     /// Writes the table: "PRISMRGB", u32 version, u32 res, res f32 z nodes,
     /// then 3 res^3 x 3 f32 coefficients, all little-endian.
-    /// Atomically (`film::write_bytes`): it replaces the committed table.
+    /// Atomically (`output::write_bytes`): it replaces the committed table.
     pub fn write(&self, path: impl AsRef<Path>) -> anyhow::Result<()> {
-        crate::film::write_bytes(path.as_ref(), &self.to_bytes())
+        crate::output::write_bytes(path.as_ref(), &self.to_bytes())
     }
 
     /// Reads a table written by [`write`](Self::write).
