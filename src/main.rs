@@ -13,7 +13,7 @@ use prism::render::{
     check_threads, is_strategy_image, render_chunked, render_with_strategies, RenderOptions, RenderStats,
     StrategyImages,
 };
-use prism::render_state::{Identity, Provenance, RenderState, SceneFile};
+use prism::render_state::{Identity, Provenance, RenderState, SceneFingerprint};
 use prism::scene::{load_scene, RenderDefaults, Scene};
 use prism::stats::{check_pass_memory, pixel_mean_variance, render_pass_films};
 use serde::Serialize;
@@ -327,7 +327,7 @@ fn reference_command(a: ReferenceArgs) -> Result<()> {
         &[("the scene", &a.scene)],
         &[("--out", &a.out), ("its sidecar", &a.out.with_extension("json"))],
     )?;
-    let file = SceneFile::read(&a.scene)?;
+    let file = SceneFingerprint::read(&a.scene)?;
     let scene = builder.build();
     let (image, meta) = prism::reference::make_reference(
         &scene,
@@ -437,7 +437,7 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
         builder.set_resolution(w, h).map_err(|e| anyhow!("--width, --height: {e}"))?;
     }
     check_render_outputs(a)?;
-    let file = SceneFile::read(&a.scene)?;
+    let file = SceneFingerprint::read(&a.scene)?;
     let scene = builder.build();
     let identity = Identity {
         scene: file.name,

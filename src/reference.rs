@@ -9,7 +9,7 @@ use crate::film::{DroppedSamples, Film};
 use crate::integrators::{effective_mis, Integrator, IntegratorOptions};
 use crate::output::{read_exr, Outputs};
 use crate::render::RenderOptions;
-use crate::render_state::SceneFile;
+use crate::render_state::SceneFingerprint;
 use crate::scene::Scene;
 use crate::stats::{luminance, pixel_mean_variance, reference_noise, render_pass_films, BlockStats, ColourStats};
 use anyhow::{ensure, Context, Result};
@@ -21,7 +21,7 @@ use std::time::Instant;
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct ReferenceMeta {
     pub scene: String,
-    /// FNV-1a 64 of the scene file's bytes, in hex (`SceneFile`); None in
+    /// FNV-1a 64 of the scene file's bytes, in hex (`SceneFingerprint`); None in
     /// references made before it was recorded.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub scene_hash: Option<String>,
@@ -101,7 +101,7 @@ impl ReferenceMeta {
 #[allow(clippy::too_many_arguments)]
 pub fn make_reference(
     scene: &Scene,
-    file: &SceneFile,
+    file: &SceneFingerprint,
     integrator: &dyn Integrator,
     integrator_name: &str,
     options: &IntegratorOptions,

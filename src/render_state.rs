@@ -308,16 +308,16 @@ fn coalesce(ranges: impl Iterator<Item = Range<u32>>) -> Vec<Range<u32>> {
 /// A scene file as a render's records name it: as it was given, and by
 /// its content (what is compared: `Identity::scene_hash`).
 #[derive(Clone, Debug)]
-pub struct SceneFile {
+pub struct SceneFingerprint {
     pub name: String,
     /// FNV-1a 64 of the file's bytes, in hex.
     pub hash: String,
 }
 
-impl SceneFile {
+impl SceneFingerprint {
     pub fn read(path: &Path) -> Result<Self> {
         let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
-        Ok(SceneFile { name: path.display().to_string(), hash: format!("{:016x}", fnv1a(&bytes)) })
+        Ok(SceneFingerprint { name: path.display().to_string(), hash: format!("{:016x}", fnv1a(&bytes)) })
     }
 }
 

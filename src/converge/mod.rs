@@ -77,7 +77,7 @@ use crate::film::{DroppedSamples, Film};
 use crate::integrators::{self, IntegratorOptions, MisHeuristic, INTEGRATORS};
 use crate::output::{check_no_stale_state, check_outputs, check_writable, ensure_exr};
 use crate::render::{render, RenderOptions};
-use crate::render_state::SceneFile;
+use crate::render_state::SceneFingerprint;
 use crate::scene::{load_scene, Scene};
 use crate::stats::rel_mse;
 use anyhow::{bail, ensure, Context, Result};
@@ -533,7 +533,7 @@ pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
         .iter()
         .map(|s| integrators::create(&s.name, &IntegratorOptions { max_depth, mis: s.mis }).map_err(anyhow::Error::msg))
         .collect::<Result<Vec<_>>>()?;
-    let scene_file = SceneFile::read(&cfg.scene)?;
+    let scene_file = SceneFingerprint::read(&cfg.scene)?;
     // What no estimator can get right: a note on every chart of the run.
     let mut notes: Vec<String> = scene.geometry_warnings();
     for n in &notes {

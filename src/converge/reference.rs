@@ -7,7 +7,7 @@ use crate::film::DroppedSamples;
 use crate::integrators::{self, IntegratorOptions, MisHeuristic};
 use crate::output::{ensure_finite, read_exr};
 use crate::reference::{make_reference, write_reference, ReferenceMeta};
-use crate::render_state::SceneFile;
+use crate::render_state::SceneFingerprint;
 use crate::scene::Scene;
 use crate::stats;
 use anyhow::{anyhow, bail, ensure, Context, Result};
@@ -17,7 +17,7 @@ use std::path::Path;
 pub(super) fn obtain_reference(
     cfg: &ConvergeConfig,
     scene: &Scene,
-    file: &SceneFile,
+    file: &SceneFingerprint,
     seed: u64,
     max_depth: u32,
     notes: &mut Vec<String>,
@@ -68,7 +68,7 @@ struct ReferenceJob<'a> {
 fn render_reference(
     cfg: &ConvergeConfig,
     scene: &Scene,
-    file: &SceneFile,
+    file: &SceneFingerprint,
     seed: u64,
     max_depth: u32,
     job: &ReferenceJob,
@@ -117,7 +117,13 @@ fn render_reference(
 
 /// Notes on a reference's origin against the run: another scene, an
 /// estimator that misses paths, dropped samples, another depth.
-fn origin_notes(cfg: &ConvergeConfig, scene: &Scene, file: &SceneFile, max_depth: u32, m: &Origin) -> Vec<String> {
+fn origin_notes(
+    cfg: &ConvergeConfig,
+    scene: &Scene,
+    file: &SceneFingerprint,
+    max_depth: u32,
+    m: &Origin,
+) -> Vec<String> {
     let mut notes = Vec::new();
     match &m.scene_hash {
         // Another file's content: an edit (a comment, a render default)
@@ -218,7 +224,7 @@ fn reference_info(path: &Path, here: bool, origin: Option<&Origin>) -> Reference
 /// errors and so no noise estimate.
 struct Origin {
     scene: String,
-    /// The scene file's content (`SceneFile::hash`), if the sidecar has it.
+    /// The scene file's content (`SceneFingerprint::hash`), if the sidecar has it.
     scene_hash: Option<String>,
     integrator: String,
     seed: u64,
