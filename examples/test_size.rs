@@ -21,7 +21,8 @@
 //! reads heavy tails low.
 
 use clap::Parser;
-use prism::integrators::{self, IntegratorOptions, MisHeuristic};
+use prism::integrators::{self, IntegratorOptions};
+use prism::sampling::MisHeuristic;
 use prism::sampling::Sampler;
 use prism::scene::load_scene;
 use prism::stats::{

@@ -43,10 +43,11 @@
 //! | max_depth | int    | 1024    | maximum scattering events (s + t - 2)       |
 //! | mis       | string | power   | MIS heuristic: power, balance or uniform    |
 
-use super::{Integrator, IntegratorOptions, MisHeuristic};
+use super::{Integrator, IntegratorOptions};
 use crate::materials::TransportMode;
 use crate::path::{camera_subpath, connect_to_camera, light_subpath, Scatter, Segment, Vertex};
 use crate::render::{Splat, StrategyRecord, Workspace};
+use crate::sampling::MisHeuristic;
 use crate::sampling::Sampler;
 use crate::scene::Scene;
 use crate::select::select_f32;

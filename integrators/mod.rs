@@ -11,10 +11,10 @@ pub use bdpt::{init_mis, mis_weight, Bdpt, Subpath};
 
 use crate::accel::LANES;
 use crate::render::Workspace;
-use crate::sampling::Sampler;
+use crate::sampling::{MisHeuristic, Sampler};
 use crate::scene::Scene;
 use crate::spectrum::{SampledSpectrum, SampledWavelengths};
-use glam::{UVec2, Vec4};
+use glam::UVec2;
 
 /// One unbiased estimator of the pixel integral (box filter, CIE-weighted
 /// spectral radiance, see ARCHITECTURE.md).
@@ -64,59 +64,6 @@ pub struct IntegratorOptions {
 impl Default for IntegratorOptions {
     fn default() -> Self {
         Self { max_depth: 1024, mis: MisHeuristic::Power }
-    }
-}
-
-/// Multiple-importance-sampling heuristic for combining the strategies of a
-/// bidirectional estimator (Veach 1997 §9.2). All three give weights that sum
-/// to one over the strategies able to make a path, so all are unbiased.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum MisHeuristic {
-    /// w_i = p_i^2 / sum_k p_k^2 (Veach's power heuristic, beta = 2).
-    #[default]
-    Power,
-    /// w_i = p_i / sum_k p_k (pbrt's choice).
-    Balance,
-    /// w_i = 1 / (number of strategies that can make the path): no
-    /// importance at all, the baseline that shows what MIS buys.
-    Uniform,
-}
-
-impl MisHeuristic {
-    /// The command-line names, in declaration order.
-    pub const NAMES: &'static [&'static str] = &["power", "balance", "uniform"];
-
-    pub fn name(self) -> &'static str {
-        Self::NAMES[self as usize]
-    }
-
-    /// What a strategy of relative density r = p_k / p_s adds to the
-    /// denominator of strategy s's weight.
-    #[inline]
-    pub fn term(self, r: f32) -> f32 {
-        self.terms(Vec4::splat(r)).x
-    }
-
-    /// `term` of each lane.
-    #[inline]
-    pub fn terms(self, r: Vec4) -> Vec4 {
-        match self {
-            MisHeuristic::Power => r * r,
-            MisHeuristic::Balance => r,
-            MisHeuristic::Uniform => Vec4::select(r.cmpgt(Vec4::ZERO), Vec4::ONE, Vec4::ZERO),
-        }
-    }
-}
-
-impl std::str::FromStr for MisHeuristic {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "power" => Ok(MisHeuristic::Power),
-            "balance" => Ok(MisHeuristic::Balance),
-            "uniform" => Ok(MisHeuristic::Uniform),
-            _ => Err(format!("unknown MIS heuristic \"{s}\" (valid: {})", Self::NAMES.join(", "))),
-        }
     }
 }
 

@@ -5,7 +5,7 @@ use clap::{Parser, Subcommand};
 use prism::accel::LANES;
 use prism::camera::Camera;
 use prism::film::{DroppedSamples, Film};
-use prism::integrators::{self, Integrator, IntegratorOptions, MisHeuristic, INTEGRATORS};
+use prism::integrators::{self, Integrator, IntegratorOptions, INTEGRATORS};
 use prism::output::{
     self, check_no_stale_state, check_outputs, check_sidecar_target, check_writable, ensure_exr, resolve_path, Outputs,
 };
@@ -14,6 +14,7 @@ use prism::render::{
     StrategyImages,
 };
 use prism::render_state::{Identity, Provenance, RenderState, SceneFingerprint};
+use prism::sampling::MisHeuristic;
 use prism::scene::{load_scene, RenderDefaults, Scene};
 use prism::stats::{check_pass_memory, pixel_mean_variance, render_pass_films};
 use serde::Serialize;

@@ -2,7 +2,7 @@
 //! heuristics, and the per-sample random stream.
 
 use crate::select::select_f32;
-use glam::{Vec2, Vec3A};
+use glam::{Vec2, Vec3A, Vec4};
 use rand_xoshiro::rand_core::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro128PlusPlus;
 use std::f32::consts::{FRAC_1_PI, FRAC_PI_2, PI};
@@ -146,6 +146,59 @@ pub fn power_heuristic(pdf_a: f32, pdf_b: f32) -> f32 {
         0.0
     } else {
         (a / (a + b)) as f32
+    }
+}
+
+/// Multiple-importance-sampling heuristic for combining the strategies of a
+/// bidirectional estimator (Veach 1997 §9.2). All three give weights that sum
+/// to one over the strategies able to make a path, so all are unbiased.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MisHeuristic {
+    /// w_i = p_i^2 / sum_k p_k^2 (Veach's power heuristic, beta = 2).
+    #[default]
+    Power,
+    /// w_i = p_i / sum_k p_k (pbrt's choice).
+    Balance,
+    /// w_i = 1 / (number of strategies that can make the path): no
+    /// importance at all, the baseline that shows what MIS buys.
+    Uniform,
+}
+
+impl MisHeuristic {
+    /// The command-line names, in declaration order.
+    pub const NAMES: &'static [&'static str] = &["power", "balance", "uniform"];
+
+    pub fn name(self) -> &'static str {
+        Self::NAMES[self as usize]
+    }
+
+    /// What a strategy of relative density r = p_k / p_s adds to the
+    /// denominator of strategy s's weight.
+    #[inline]
+    pub fn term(self, r: f32) -> f32 {
+        self.terms(Vec4::splat(r)).x
+    }
+
+    /// `term` of each lane.
+    #[inline]
+    pub fn terms(self, r: Vec4) -> Vec4 {
+        match self {
+            MisHeuristic::Power => r * r,
+            MisHeuristic::Balance => r,
+            MisHeuristic::Uniform => Vec4::select(r.cmpgt(Vec4::ZERO), Vec4::ONE, Vec4::ZERO),
+        }
+    }
+}
+
+impl std::str::FromStr for MisHeuristic {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "power" => Ok(MisHeuristic::Power),
+            "balance" => Ok(MisHeuristic::Balance),
+            "uniform" => Ok(MisHeuristic::Uniform),
+            _ => Err(format!("unknown MIS heuristic \"{s}\" (valid: {})", Self::NAMES.join(", "))),
+        }
     }
 }
 

@@ -35,8 +35,9 @@ mod scenes;
 
 use glam::{DMat3, DVec3, Vec3A};
 use prism::film::Film;
-use prism::integrators::{Integrator, MisHeuristic, INTEGRATORS};
+use prism::integrators::{Integrator, INTEGRATORS};
 use prism::render::{render, RenderOptions};
+use prism::sampling::MisHeuristic;
 use prism::scene::{parse_scene, Scene};
 use prism::stats::{interior_pixels, masked, ColourStats, Image, Verdict};
 use scenes::{bdpt, integrator, scene};

@@ -74,10 +74,11 @@
 
 use crate::camera::Camera;
 use crate::film::{DroppedSamples, Film};
-use crate::integrators::{self, IntegratorOptions, MisHeuristic, INTEGRATORS};
+use crate::integrators::{self, IntegratorOptions, INTEGRATORS};
 use crate::output::{check_no_stale_state, check_outputs, check_writable, ensure_exr};
 use crate::render::{render, RenderOptions};
 use crate::render_state::SceneFingerprint;
+use crate::sampling::MisHeuristic;
 use crate::scene::{load_scene, Scene};
 use crate::stats::rel_mse;
 use anyhow::{bail, ensure, Context, Result};

@@ -4,10 +4,11 @@
 
 use super::{spinner, ConvergeConfig, ReferenceInfo, ReferenceSource, REFERENCE_SEED_OFFSET};
 use crate::film::DroppedSamples;
-use crate::integrators::{self, IntegratorOptions, MisHeuristic};
+use crate::integrators::{self, IntegratorOptions};
 use crate::output::{ensure_finite, read_exr};
 use crate::reference::{make_reference, write_reference, ReferenceMeta};
 use crate::render_state::SceneFingerprint;
+use crate::sampling::MisHeuristic;
 use crate::scene::Scene;
 use crate::stats;
 use anyhow::{anyhow, bail, ensure, Context, Result};
@@ -284,7 +285,7 @@ impl Origin {
             spp: m.spp as u64 * m.passes as u64,
             passes: Some(m.passes),
             // (References made before it was recorded used the default.)
-            mis: m.mis.clone().unwrap_or_else(|| crate::integrators::MisHeuristic::default().name().to_string()),
+            mis: m.mis.clone().unwrap_or_else(|| MisHeuristic::default().name().to_string()),
             max_depth: m.max_depth,
             first_sample: 0,
             wall_seconds: Some(m.wall_seconds),

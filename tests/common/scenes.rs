@@ -3,7 +3,8 @@
 //! statistics of 32 x 32 renders.
 #![allow(dead_code)]
 
-use prism::integrators::{self, Integrator, IntegratorOptions, MisHeuristic};
+use prism::integrators::{self, Integrator, IntegratorOptions};
+use prism::sampling::MisHeuristic;
 use prism::scene::{load_scene, parse_scene, Scene};
 use prism::spectrum::{spectrum_to_xyz, xyz_to_linear_srgb, Spectrum};
 use prism::stats::{ColourStats, Image, Verdict};
