@@ -46,12 +46,13 @@
 use super::{Integrator, IntegratorOptions};
 use crate::materials::TransportMode;
 use crate::path::{camera_subpath, connect_to_camera, light_subpath, Scatter, Segment, Vertex};
-use crate::render::{Splat, StrategyRecord, Workspace};
+use crate::render::{Splat, Workspace};
 use crate::sampling::MisHeuristic;
 use crate::sampling::Sampler;
 use crate::scene::Scene;
 use crate::select::select_f32;
 use crate::spectrum::{SampledSpectrum, SampledWavelengths};
+use crate::strategies::StrategyRecord;
 use crate::unsamplable::{environment_paths_overflow, specular_chains_to_point_lights};
 use glam::{UVec2, Vec2, Vec4};
 

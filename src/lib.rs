@@ -22,6 +22,7 @@ pub mod select;
 pub mod shapes;
 pub mod spectrum;
 pub mod stats;
+pub mod strategies;
 pub mod unsamplable;
 pub mod wide_bvh;
 

@@ -9,14 +9,12 @@ use prism::integrators::{self, Integrator, IntegratorOptions, INTEGRATORS};
 use prism::output::{
     self, check_no_stale_state, check_outputs, check_sidecar_target, check_writable, ensure_exr, resolve_path, Outputs,
 };
-use prism::render::{
-    check_threads, is_strategy_image, render_chunked, render_with_strategies, RenderOptions, RenderStats,
-    StrategyImages,
-};
+use prism::render::{check_threads, render_chunked, render_with_strategies, RenderOptions, RenderStats};
 use prism::render_state::{Identity, Provenance, RenderState, SceneFingerprint};
 use prism::sampling::MisHeuristic;
 use prism::scene::{load_scene, RenderDefaults, Scene};
 use prism::stats::{check_pass_memory, pixel_mean_variance, render_pass_films};
+use prism::strategies::{is_strategy_image, StrategyImages};
 use serde::Serialize;
 use std::ops::Range;
 use std::path::{Path, PathBuf};

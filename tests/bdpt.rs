@@ -19,13 +19,14 @@ use prism::film::Film;
 use prism::integrators::{init_mis, mis_weight, Subpath};
 use prism::materials::{Bsdf, Conductor, Dielectric, Diffuse, Mirror, TransportMode};
 use prism::path::{camera_subpath, light_subpath, Vertex, VertexKind};
-use prism::render::{render, render_with_strategies, RenderOptions, StrategyImages};
+use prism::render::{render, render_with_strategies, RenderOptions};
 use prism::sampling::MisHeuristic;
 use prism::sampling::Sampler;
 use prism::scene::{Scene, SceneBuilder};
 use prism::shapes::Mesh;
 use prism::spectrum::{SampledWavelengths, Spectrum};
 use prism::stats::{rel_mse, render_passes, ColourStats, Image, Verdict};
+use prism::strategies::StrategyImages;
 use scenes::{bdpt, integrator, scene, seed, srgb_of, stats, versus};
 use std::sync::OnceLock;
 
