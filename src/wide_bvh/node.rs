@@ -9,11 +9,8 @@ use obvhs::{aabb::Aabb, cwbvh::node::CwBvhNode};
 /// Writes the wide node with box `aabb` and `children` (ranges of `refs`
 /// in memory order, covering the node's) into `nodes[slot]`: slots by ray
 /// octant, quantized boxes, metadata; reserves nodes for its inner
-/// children. CWBVH addresses a node's leaf primitives by offsets 0..24
-/// from primitive_base_idx, so the leaf children's primitives are moved to
-/// the front of the node's range and the inner children's ranges up behind them, each as a
-/// block. Returns the inner children (index, moved range, reserved slot) in
-/// memory order.
+/// children. Returns the inner children (index, moved range, reserved slot)
+/// in memory order.
 pub(super) fn emit(
     refs: &mut [PrimRef],
     base: usize,
@@ -22,7 +19,52 @@ pub(super) fn emit(
     slot: usize,
     nodes: &mut Vec<CwBvhNode>,
 ) -> Vec<(usize, Range, usize)> {
-    let is_leaf = |c: &Range| c.len() <= MAX_LEAF_PRIMS;
+    let (moved, offsets) = leaves_first(refs, children);
+    let e = quantization_step(aabb.max - aabb.min);
+    let mut wide = CwBvhNode {
+        p: aabb.min.into(),
+        e: e.to_array().map(|c| (c.to_bits() >> 23) as u8),
+        child_base_idx: nodes.len() as u32,
+        primitive_base_idx: (base + children[0].start) as u32,
+        ..CwBvhNode::default()
+    };
+    let mut by_slot: [Option<usize>; BRANCHING] = [None; BRANCHING];
+    for (c, s) in octant_slots(&aabb, children).into_iter().enumerate() {
+        by_slot[s] = Some(c);
+    }
+    // Leaf children: the count in unary in the top 3 bits, the offset of
+    // the first primitive from primitive_base_idx below. Inner children:
+    // 001 then 24 + slot; their nodes follow in slot order.
+    let mut inner_slots = [0usize; BRANCHING];
+    let mut inner = 0;
+    for (s, c) in by_slot.iter().enumerate() {
+        let Some(c) = *c else { continue };
+        let child = &children[c];
+        quantize_child(&mut wide, s, &child.bounds, &aabb, e);
+        if is_leaf(child) {
+            wide.child_meta[s] = offsets[c] | ((1u8 << child.len()) - 1) << 5;
+        } else {
+            wide.imask |= 1 << s;
+            wide.child_meta[s] = (24 + s as u8) | 0b0010_0000;
+            inner_slots[c] = nodes.len() + inner;
+            inner += 1;
+        }
+    }
+    nodes.resize(nodes.len() + inner, CwBvhNode::default());
+    nodes[slot] = wide;
+    (0..children.len()).filter(|&c| !is_leaf(&children[c])).map(|c| (c, moved[c], inner_slots[c])).collect()
+}
+
+fn is_leaf(c: &Range) -> bool {
+    c.len() <= MAX_LEAF_PRIMS
+}
+
+/// CWBVH addresses a node's leaf primitives by offsets 0..24 from
+/// primitive_base_idx, so this moves the leaf children's primitives to the
+/// front of the node's range and the inner children's ranges up behind
+/// them, each as a block. Returns the children's ranges after the move and
+/// each leaf child's offset.
+fn leaves_first(refs: &mut [PrimRef], children: &[Range]) -> (Vec<Range>, [u8; BRANCHING]) {
     let first = children[0].start;
     let leaf_prims: Vec<PrimRef> =
         children.iter().filter(|c| is_leaf(c)).flat_map(|c| refs[c.start..c.end].iter().copied()).collect();
@@ -45,53 +87,23 @@ pub(super) fn emit(
         refs.copy_within(old.start..old.end, new.start);
     }
     refs[first..first + leaf_prims.len()].copy_from_slice(&leaf_prims);
+    (moved, offsets)
+}
 
-    let slot_of = octant_slots(&aabb, children);
-    let e = quantization_step(aabb.max - aabb.min);
+/// Writes box `b` of the child in slot `s` of `wide` (box `node`, grid step
+/// `e`), rounded outward on the grid of power-of-two step, so the
+/// dequantized box p + q e holds the child's box (up to the rounding of
+/// b - p that `intersect_node`'s slack covers).
+fn quantize_child(wide: &mut CwBvhNode, s: usize, b: &Aabb, node: &Aabb, e: Vec3A) {
     let rcp_e = 1.0 / e;
-    let mut wide = CwBvhNode {
-        p: aabb.min.into(),
-        e: e.to_array().map(|c| (c.to_bits() >> 23) as u8),
-        child_base_idx: nodes.len() as u32,
-        primitive_base_idx: (base + first) as u32,
-        ..CwBvhNode::default()
-    };
-    let mut by_slot: [Option<usize>; BRANCHING] = [None; BRANCHING];
-    for (c, &s) in slot_of.iter().enumerate() {
-        by_slot[s] = Some(c);
-    }
-    // Leaf children: the count in unary in the top 3 bits, the offset of
-    // the first primitive from primitive_base_idx below. Inner children:
-    // 001 then 24 + slot; their nodes follow in slot order.
-    let mut inner_slots = [0usize; BRANCHING];
-    let mut inner = 0;
-    for (s, c) in by_slot.iter().enumerate() {
-        let Some(c) = *c else { continue };
-        let child = &children[c];
-        // Rounded outward on a grid of power-of-two step, so the dequantized
-        // box p + q e holds the child's box (up to the rounding of b - p
-        // that `intersect_node`'s slack covers).
-        let b = child.bounds;
-        let lo = ((b.min - aabb.min) * rcp_e).floor().clamp(Vec3A::ZERO, Vec3A::splat(255.0));
-        let hi = ((b.max - aabb.min) * rcp_e).ceil().clamp(Vec3A::ZERO, Vec3A::splat(255.0));
-        wide.child_min_x[s] = lo.x as u8;
-        wide.child_min_y[s] = lo.y as u8;
-        wide.child_min_z[s] = lo.z as u8;
-        wide.child_max_x[s] = hi.x as u8;
-        wide.child_max_y[s] = hi.y as u8;
-        wide.child_max_z[s] = hi.z as u8;
-        if is_leaf(child) {
-            wide.child_meta[s] = offsets[c] | ((1u8 << child.len()) - 1) << 5;
-        } else {
-            wide.imask |= 1 << s;
-            wide.child_meta[s] = (24 + s as u8) | 0b0010_0000;
-            inner_slots[c] = nodes.len() + inner;
-            inner += 1;
-        }
-    }
-    nodes.resize(nodes.len() + inner, CwBvhNode::default());
-    nodes[slot] = wide;
-    (0..children.len()).filter(|&c| !is_leaf(&children[c])).map(|c| (c, moved[c], inner_slots[c])).collect()
+    let lo = ((b.min - node.min) * rcp_e).floor().clamp(Vec3A::ZERO, Vec3A::splat(255.0));
+    let hi = ((b.max - node.min) * rcp_e).ceil().clamp(Vec3A::ZERO, Vec3A::splat(255.0));
+    wide.child_min_x[s] = lo.x as u8;
+    wide.child_min_y[s] = lo.y as u8;
+    wide.child_min_z[s] = lo.z as u8;
+    wide.child_max_x[s] = hi.x as u8;
+    wide.child_max_y[s] = hi.y as u8;
+    wide.child_max_z[s] = hi.z as u8;
 }
 
 /// The grid step per axis for a node of extent `extent`: the smallest power
