@@ -223,31 +223,55 @@ struct Task {
     samples: Range<u32>,
 }
 
-/// The render's tasks, in merge order: the image's tiles in row-major order
-/// with all of `samples`, or, when the image has fewer than `MIN_TASKS`
-/// tiles, each tile with consecutive runs of them (whole packets of `LANES`
-/// samples), so that a small image keeps every thread busy too (a 16 x 16
-/// image is one tile, which one thread rendered alone before). The cut
-/// depends on the image and the samples only, never on the thread count,
-/// and the film's sums are exact, so it does not change the image.
-fn tasks(width: u32, height: u32, samples: Range<u32>) -> Vec<Task> {
-    let tiles = tile_grid(width, height);
-    let n = samples.len();
-    let runs = MIN_TASKS.div_ceil(tiles.len().max(1)).min(n.div_ceil(LANES)).max(1);
-    let run = n.div_ceil(runs).next_multiple_of(LANES).max(LANES);
-    // A run of 2^32 samples (n near u32::MAX) saturates to the range's end.
-    let run32 = u32::try_from(run).unwrap_or(u32::MAX);
-    let end = samples.end;
-    tiles
-        .into_iter()
-        .flat_map(|(origin, size)| {
-            samples.clone().step_by(run).map(move |first| Task {
-                origin,
-                size,
-                samples: first..first.saturating_add(run32).min(end),
-            })
-        })
-        .collect()
+/// The render's tasks, in merge order: each of the image's tiles in
+/// row-major order with consecutive runs of `samples` (whole packets of
+/// `LANES` samples). The runs are cut so that a small image keeps every
+/// thread busy too (at least `MIN_TASKS` tasks: a 16 x 16 image is one tile,
+/// which one thread rendered alone before), and so that no run is longer
+/// than `MAX_RUN`. The cut depends on the image and the samples only, never
+/// on the thread count, and the film's sums are exact, so it does not change
+/// the image. The tasks are made as they are taken: a render of 2^32
+/// samples a pixel has some 2^26 of them per tile.
+struct Tasks {
+    tiles: Vec<(UVec2, UVec2)>,
+    samples: Range<u32>,
+    /// Samples a pixel in a task (the last run of a tile may have fewer).
+    run: u64,
+    /// Tasks per tile.
+    runs: usize,
+}
+
+/// The longest run of sample indices in one task. A task holds its splats
+/// until it is merged, so its memory grows with its run: light tracing in a
+/// 64 x 64 white room of albedo 0.99 (~70 splats a light path) took 85 KB a
+/// sample of each pixel, 30 MB at 256 samples a pixel with 2 threads, and
+/// would have taken gigabytes for a long render of an image of at least
+/// `MIN_TASKS` tiles, whose tasks were once whole tiles with every sample
+/// (an audit, session 44). 64, the benchmark's spp, leaves its tasks as
+/// they were.
+const MAX_RUN: u64 = 64;
+
+impl Tasks {
+    fn new(width: u32, height: u32, samples: Range<u32>) -> Self {
+        let tiles = tile_grid(width, height);
+        let n = samples.len() as u64;
+        let lanes = LANES as u64;
+        let runs = (MIN_TASKS as u64).div_ceil(tiles.len().max(1) as u64).min(n.div_ceil(lanes)).max(1);
+        let run = n.div_ceil(runs).next_multiple_of(lanes).clamp(lanes, MAX_RUN);
+        let runs = if n == 0 { 0 } else { n.div_ceil(run) as usize };
+        Self { tiles, samples, run, runs }
+    }
+
+    fn len(&self) -> usize {
+        self.tiles.len() * self.runs
+    }
+
+    fn get(&self, i: usize) -> Task {
+        let (origin, size) = self.tiles[i / self.runs];
+        let first = self.samples.start as u64 + (i % self.runs) as u64 * self.run;
+        let end = (first + self.run).min(self.samples.end as u64);
+        Task { origin, size, samples: first as u32..end as u32 }
+    }
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -264,13 +288,13 @@ fn render_impl(
     let record = strategies.is_some();
     let start = Instant::now();
     let (w, h, spp) = (film.width, film.height, samples.len() as u64);
-    let tasks = tasks(w, h, samples);
+    let tasks = Tasks::new(w, h, samples);
     let merge = Merge { film, strategies, rays: 0, splats: Vec::new() };
     let queue = TaskQueue::new(tasks.len(), merge);
     pool.broadcast(|_| {
         let mut ws = Workspace { strategies: record.then(Vec::new), ..Workspace::default() };
         queue.work(|i| {
-            let out = render_task(scene, integrator, seed, &mut ws, w, &tasks[i]);
+            let out = render_task(scene, integrator, seed, &mut ws, w, &tasks.get(i));
             bar.inc(out.sums.len() as u64 * out.spp);
             out
         });
@@ -574,18 +598,27 @@ mod tests {
     use super::*;
 
     /// Every (pixel, sample index) of a render is in exactly one task, a
-    /// task's run starts on a packet boundary, and an image of fewer tiles
-    /// than `MIN_TASKS` is cut into runs while a larger one is not.
+    /// task's run starts on a packet boundary and is at most `MAX_RUN`
+    /// long, and an image of fewer tiles than `MIN_TASKS` is cut into runs
+    /// while a larger one is cut only past `MAX_RUN` samples.
     #[test]
     fn tasks_cover_every_pixel_sample_once() {
+        let all = |t: &Tasks| (0..t.len()).map(|i| t.get(i)).collect::<Vec<_>>();
         let top = u32::MAX - 100..u32::MAX;
-        for (w, h, samples) in
-            [(16, 16, 0..4096), (16, 16, 3..40), (40, 24, 0..64), (8, 8, 0..1), (144, 128, 0..9), (16, 16, top)]
-        {
+        for (w, h, samples) in [
+            (16, 16, 0..4096),
+            (16, 16, 3..40),
+            (40, 24, 0..64),
+            (8, 8, 0..1),
+            (144, 128, 0..9),
+            (144, 128, 0..1000),
+            (16, 16, top),
+        ] {
             let n = samples.len();
             let mut count = vec![0u32; (w * h) as usize * n];
-            for t in tasks(w, h, samples.clone()) {
+            for t in all(&Tasks::new(w, h, samples.clone())) {
                 assert_eq!((t.samples.start - samples.start) % LANES as u32, 0, "{t:?}");
+                assert!(t.samples.len() as u64 <= MAX_RUN, "{t:?}");
                 for (y, x) in (0..t.size.y).flat_map(|y| (0..t.size.x).map(move |x| (y, x))) {
                     let pixel = ((t.origin.y + y) * w + t.origin.x + x) as usize;
                     for s in t.samples.clone() {
@@ -595,28 +628,22 @@ mod tests {
             }
             assert!(count.iter().all(|&c| c == 1), "{w}x{h}, samples {samples:?}: not a partition");
         }
-        assert_eq!(tasks(16, 16, 0..4096).len(), MIN_TASKS);
-        assert_eq!(tasks(40, 24, 0..64).len(), 6 * 8);
-        assert_eq!(tasks(144, 128, 0..4096).len(), 9 * 8);
-        assert!(tasks(16, 16, 0..0).is_empty());
-        // Ranges too long to count one by one, the first two with runs of
-        // 2^32 (which a u32 would wrap to 0): each tile's runs follow one
-        // another from the range's start to its end.
+        assert_eq!(Tasks::new(16, 16, 0..4096).len(), MIN_TASKS);
+        assert_eq!(Tasks::new(40, 24, 0..64).len(), 6 * 8);
+        assert_eq!(Tasks::new(144, 128, 0..64).len(), 9 * 8, "an image of 72 tiles at 64 spp was cut");
+        assert_eq!(Tasks::new(144, 128, 0..4096).len(), 9 * 8 * 64);
+        assert_eq!(Tasks::new(16, 16, 0..0).len(), 0);
+        // Ranges too long to list: each tile's runs follow one another from
+        // the range's start to its end (the first and last few of each).
         for (w, h, samples) in [(144, 128, 0..u32::MAX), (144, 128, 1..u32::MAX), (16, 16, 0..u32::MAX)] {
-            let cut = tasks(w, h, samples.clone());
-            let tiles = cut.chunk_by(|a, b| a.origin == b.origin);
-            assert_eq!(tiles.clone().count(), tile_grid(w, h).len(), "{w}x{h}, {samples:?}: a tile left out");
-            for tile in tiles {
-                let ends = tile.iter().map(|t| (t.samples.start, t.samples.end));
-                let joined = ends.clone().zip(ends.skip(1)).all(|(a, b)| a.1 == b.0);
-                let (first, last) = (&tile[0].samples, &tile[tile.len() - 1].samples);
-                assert!(
-                    joined && first.start == samples.start && last.end == samples.end,
-                    "{w}x{h}, {samples:?}: tile {:?} is cut into {:?}",
-                    tile[0].origin,
-                    tile.iter().map(|t| &t.samples).collect::<Vec<_>>()
-                );
-                assert!(tile.iter().all(|t| !t.samples.is_empty()), "{w}x{h}, {samples:?}: an empty task");
+            let tasks = Tasks::new(w, h, samples.clone());
+            assert_eq!(tasks.len(), tile_grid(w, h).len() * (samples.len() as u64).div_ceil(MAX_RUN) as usize);
+            for tile in 0..tile_grid(w, h).len() {
+                let (first, last) = (tile * tasks.runs, (tile + 1) * tasks.runs - 1);
+                let ends = [first, first + 1, first + 2, last - 2, last - 1, last].map(|i| tasks.get(i).samples);
+                assert_eq!((ends[0].start, ends[5].end), (samples.start, samples.end), "{w}x{h}, {samples:?}");
+                assert!(ends[..3].windows(2).chain(ends[3..].windows(2)).all(|p| p[0].end == p[1].start));
+                assert!(ends.iter().all(|r| !r.is_empty()), "{w}x{h}, {samples:?}: an empty task");
             }
         }
     }
