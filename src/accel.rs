@@ -45,6 +45,7 @@ use obvhs::{
     cwbvh::{node::CwBvhNode, CwBvh},
 };
 use rayon::prelude::*;
+use std::ops::ControlFlow;
 
 /// A ray-triangle hit: distance, the triangle's index in the input order, the
 /// barycentrics of its second and third vertices, and its vertices (as given
@@ -255,10 +256,10 @@ impl Accel {
     /// builder used, fl(x - p) times a power of two, and rounding keeps
     /// order, so a triangle bound below the query's max maps below it too
     /// (and likewise for the min). A builder that quantized otherwise (in
-    /// f64, say) would have to pad this query. For scene checks that
-    /// compare neighbouring triangles (`Scene::emitters_on_surfaces`), not
-    /// for rendering.
-    pub fn overlapping(&self, query: (Vec3A, Vec3A), mut visit: impl FnMut(u32)) {
+    /// f64, say) would have to pad this query. The walk stops when `visit`
+    /// breaks. For scene checks that compare neighbouring triangles
+    /// (`Scene::emitters_on_surfaces`), not for rendering.
+    pub fn overlapping(&self, query: (Vec3A, Vec3A), mut visit: impl FnMut(u32) -> ControlFlow<()>) {
         let query = Aabb::new(query.0, query.1);
         let mut stack = if self.bvh.nodes.is_empty() { Vec::new() } else { vec![0u32] };
         while let Some(i) = stack.pop() {
@@ -271,7 +272,9 @@ impl Accel {
             }
             let mut tris = hits & 0x00ff_ffff;
             while tris != 0 {
-                visit(node.primitive_base_idx + tris.trailing_zeros());
+                if visit(node.primitive_base_idx + tris.trailing_zeros()).is_break() {
+                    return;
+                }
                 tris &= tris - 1;
             }
         }
@@ -960,7 +963,10 @@ mod tests {
                     q
                 };
                 let mut seen = vec![0u32; n];
-                a.overlapping(query, |s| seen[s as usize] += 1);
+                a.overlapping(query, |s| {
+                    seen[s as usize] += 1;
+                    ControlFlow::Continue(())
+                });
                 assert!(seen.iter().all(|&c| c <= 1), "{scene}, query {i}: a slot visited twice");
                 for s in 0..n as u32 {
                     let (lo, hi) = bounds(s);
