@@ -868,11 +868,12 @@ impl<'a> Importer<'a> {
                 self.warn(
                     label,
                     format!(
-                        "ior {ior} is within {:e} of 1 on a rough surface: 1 used (an index-matched interface)",
-                        Dielectric::MIN_INDEX_CONTRAST
+                        "ior {ior} is within {:.1e} of 1 on a surface this rough: f32 cannot resolve its refraction, \
+                         a smooth interface used",
+                        dielectric.min_index_contrast()
                     ),
                 );
-                dielectric = Dielectric::new(Spectrum::Constant(1.0), alpha, alpha);
+                dielectric = Dielectric::new(Spectrum::Constant(ior), 0.0, 0.0);
             }
             return Bsdf::Dielectric(dielectric);
         }
