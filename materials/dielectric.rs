@@ -106,8 +106,22 @@ impl Dielectric {
     /// The least |eta - 1| a rough interface of this roughness may have:
     /// `MIN_INDEX_CONTRAST`, and `MIN_LOBE_WIDTH` over its narrower alpha.
     pub fn min_index_contrast(&self) -> f32 {
-        let alpha = self.distrib.alpha_x.min(self.distrib.alpha_y);
-        Self::MIN_INDEX_CONTRAST.max(Self::MIN_LOBE_WIDTH / alpha)
+        Self::MIN_INDEX_CONTRAST.max(Self::MIN_LOBE_WIDTH / self.narrower_alpha())
+    }
+
+    pub fn narrower_alpha(&self) -> f32 {
+        self.distrib.alpha_x.min(self.distrib.alpha_y)
+    }
+
+    /// "at least B at alpha A, its narrower": why `index_unresolved`, for
+    /// the loaders' messages, B rounded up to three digits (rounded to
+    /// nearest it could read below the index it refuses; f32's last place
+    /// is not rounded up: 2e-4 reads 2.00e-4).
+    pub fn min_index_contrast_text(&self) -> String {
+        let b = self.min_index_contrast() as f64;
+        let step = 10f64.powi(b.log10().floor() as i32 - 2);
+        let shown = (b / step * (1.0 - 1e-6)).ceil() * step;
+        format!("at least {shown:.2e} at alpha {}, its narrower", self.narrower_alpha())
     }
 
     /// Rough, with eta within `min_index_contrast` of 1 at some wavelength

@@ -192,6 +192,7 @@ impl Film {
 mod tests {
     use super::*;
 
+    /// The i64 shortcut truncates as the i128 conversion does, on both sides
     /// of its threshold (8 = 2^63 / 2^60) and with one large channel among
     /// small ones.
     #[test]

@@ -13,7 +13,7 @@
 //! of the adds; the grouping depends on the image and sample range, not on
 //! the threads.)
 //! The work is cut into tasks, a tile and a run of sample indices each
-//! (`tasks`), merged in task order (`TaskQueue`), for the f64 per-strategy
+//! (`Tasks`), merged in task order (`TaskQueue`), for the f64 per-strategy
 //! images (strategies.rs).
 
 use crate::accel::LANES;
@@ -33,7 +33,7 @@ use std::time::{Duration, Instant};
 
 const TILE: u32 = 16;
 /// A render is cut into at least this many tasks, small images included
-/// (`tasks`).
+/// (`Tasks`).
 const MIN_TASKS: usize = 64;
 
 /// A contribution to the pixel that contains `raster` (box filter), from any
@@ -250,6 +250,7 @@ struct Tasks {
 /// (an audit, session 44). 64, the benchmark's spp, leaves its tasks as
 /// they were.
 const MAX_RUN: u64 = 64;
+const _: () = assert!(MAX_RUN >= LANES as u64 && MAX_RUN % LANES as u64 == 0, "runs are whole packets");
 
 impl Tasks {
     fn new(width: u32, height: u32, samples: Range<u32>) -> Self {

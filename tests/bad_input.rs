@@ -150,7 +150,7 @@ const CASES: &[Case] = &[
         args: &[],
         out: "out.exr",
         position: "s.json:3:56:",
-        words: &["materials.white.ior: a rough dielectric's ior must be 1 or differ from 1 by at least 2.0e-4 at its roughness (here 1.00001 to 1.00001)"],
+        words: &["materials.white.ior: a rough dielectric's ior must be 1 or differ from 1 by at least 2.00e-4 at alpha 0.25, its narrower (here 1.00001 to 1.00001)"],
     },
     Case {
         id: "cold-blackbody",

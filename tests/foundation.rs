@@ -97,7 +97,7 @@ fn sample_ranges_add_up_to_one_render() {
 }
 
 /// An image of one tile is cut into runs of sample indices so that every
-/// thread has work (render.rs `tasks`); the cut must not change the image.
+/// thread has work (render.rs `Tasks`); the cut must not change the image.
 /// A 16 x 16 image, 64 spp in one call at 1 and 2 threads, against 64
 /// one-sample calls (a call of one sample is not cut).
 #[test]

@@ -702,31 +702,65 @@ fn an_emitter_in_a_surface_is_named() {
 
 /// An emitting disk cut as a fan: every triangle lies in the plane and the
 /// bounds of every other, and none overlaps another. Alone it is named
-/// nowhere; flat on a panel, every one of its triangles is. (The check once
-/// tested every pair of such triangles, 98 s for a fan of 64,000; it now
-/// stops after `MAX_COPLANAR_TESTS` triangles in an emitter's plane, and
-/// the panel, found among the first, is still found for each.)
+/// nowhere; flat on a panel, or on a ceiling cut into a grid, every one of
+/// its triangles is, and so is each triangle of a quad lamp on a finely
+/// cut ceiling. (The check once tested every pair of the fan's triangles,
+/// 98 s for a fan of 64,000, an audit; its first bound charged the
+/// ceiling's triangles too, and missed the fan of 128 on a grid of 10 x 10
+/// and one of the quad's triangles on a grid of 200 x 200, a review.)
 #[test]
 fn an_emitting_fan_is_named_only_on_a_surface() {
-    let n = 2000;
-    let rim = |i: usize| {
-        let a = std::f32::consts::TAU * i as f32 / n as f32;
-        format!("[{}, 2, {}]", 0.5 * a.cos(), 0.5 * a.sin())
+    use prism::camera::Camera;
+    use prism::materials::{Bsdf, Diffuse};
+    use prism::scene::SceneBuilder;
+    use prism::shapes::Mesh;
+    use prism::spectrum::Spectrum;
+    let v = Vec3A::new;
+    let fan = |n: usize, r: f32, centre: Vec3A| {
+        let rim = (0..n).map(|i| {
+            let a = std::f32::consts::TAU * i as f32 / n as f32;
+            centre + v(r * a.cos(), 0.0, r * a.sin())
+        });
+        let positions = std::iter::once(centre).chain(rim).collect();
+        let indices = (0..n as u32).map(|i| [0, (i + 1) % n as u32 + 1, i + 1]).collect();
+        Mesh { positions, normals: Vec::new(), indices }
     };
-    let positions: Vec<String> = std::iter::once("[0, 2, 0]".to_string()).chain((0..n).map(rim)).collect();
-    let indices: Vec<String> = (0..n).map(|i| format!("[0, {}, {}]", (i + 1) % n + 1, i + 1)).collect();
-    let fan = format!(
-        r#",
-    {{"name": "fan", "shape": {{"type": "mesh", "positions": [{}], "indices": [{}]}}, "material": "black", "emission": 1}}"#,
-        positions.join(", "),
-        indices.join(", ")
-    );
-    let panel = r#",
-    {"name": "panel", "shape": {"type": "quad", "corners": [[-1, 2, -1], [-1, 2, 1], [1, 2, 1], [1, 2, -1]]}, "material": "white"}"#;
-    let check = |objects: &str| parse_scene(&stage("", objects, "", None), "fan", Path::new(".")).unwrap().build();
-    assert_eq!(check(&fan).emitters_on_surfaces(), None, "the fan alone");
-    let w = check(&(fan.clone() + panel)).emitters_on_surfaces().unwrap_or_default();
-    assert!(w.contains("\"fan (triangle") && w.contains(&format!("(and {} more", n - 1)), "the fan on a panel: {w}");
+    // A ceiling at y = 2 over [-2, 2]^2 in cells x cells squares.
+    let grid = |cells: u32| {
+        let at = |i: u32| -2.0 + 4.0 * i as f32 / cells as f32;
+        let positions = (0..=cells).flat_map(|j| (0..=cells).map(move |i| v(at(i), 2.0, at(j)))).collect();
+        let k = |i: u32, j: u32| j * (cells + 1) + i;
+        let indices = (0..cells)
+            .flat_map(|j| {
+                (0..cells).flat_map(move |i| {
+                    [[k(i, j), k(i + 1, j), k(i + 1, j + 1)], [k(i, j), k(i + 1, j + 1), k(i, j + 1)]]
+                })
+            })
+            .collect();
+        Mesh { positions, normals: Vec::new(), indices }
+    };
+    let check = |lamp: Mesh, ceiling: Option<Mesh>| {
+        let camera = Camera::new(v(0.0, 1.0, -3.0), v(0.0, 1.0, 0.0), Vec3A::Y, 45.0, 8, 8);
+        let mut b = SceneBuilder::new(camera);
+        let white = b.material("white", Bsdf::Diffuse(Diffuse::new(Spectrum::Constant(0.7))));
+        if let Some(ceiling) = ceiling {
+            b.mesh("ceiling", ceiling, white, None);
+        }
+        b.mesh("lamp", lamp, white, Some((Spectrum::Constant(5.0), false)));
+        b.build().emitters_on_surfaces()
+    };
+    let named_all = |w: Option<String>, n: usize| {
+        let w = w.unwrap_or_default();
+        let all = if n == 1 { String::new() } else { format!("(and {} more", n - 1) };
+        w.contains("\"lamp (triangle") && w.contains(&all) && w.contains("a \"white\" surface")
+    };
+    let origin = v(0.0, 2.0, 0.0);
+    assert_eq!(check(fan(2000, 0.5, origin), None), None, "the fan alone");
+    assert!(named_all(check(fan(2000, 0.5, origin), Some(grid(1))), 2000), "the fan on a panel");
+    assert!(named_all(check(fan(128, 0.15, v(0.37, 2.0, 0.11)), Some(grid(10))), 128), "a fan on a grid of 10");
+    assert!(named_all(check(fan(2000, 0.3, origin), Some(grid(50))), 2000), "a fan on a grid of 50");
+    let quad = Mesh::quad([v(-0.25, 2.0, -0.25), v(0.25, 2.0, -0.25), v(0.25, 2.0, 0.25), v(-0.25, 2.0, 0.25)]);
+    assert!(named_all(check(quad, Some(grid(200))), 2), "a quad lamp on a grid of 200");
 }
 
 /// A point light on a surface is named (`Scene::point_lights_on_surfaces`):

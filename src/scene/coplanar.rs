@@ -21,8 +21,8 @@ impl Scene {
     /// rounding, so `path` lost one side of such a lamp (an audit: 0.24
     /// against 0.31 for `light` and `bdpt`; a `two_sided` quad is the lamp
     /// it meant). Each emitter is tested against the triangles the BVH
-    /// finds near its bounds only, and against at most
-    /// `MAX_COPLANAR_TESTS` of those that lie in its plane, so the check
+    /// finds near its bounds only (`MAX_CANDIDATES` of them at most), of
+    /// its own mesh against `MAX_OWN_MESH_TESTS` at most, so the check
     /// costs about a ray query per emitter.
     pub fn emitters_on_surfaces(&self) -> Option<String> {
         // An emitter left out of the BVH (collinear vertices) is never hit,
@@ -36,17 +36,27 @@ impl Scene {
         let mut emitter_slots: Vec<(u32, &str)> = emitters.iter().map(|&(a, name)| (a.slot, name)).collect();
         emitter_slots.sort_unstable();
         // Half the pad is already no less than any triangle's tolerance in
-        // `lies_on`: it covers the largest coordinate of the scene. The
+        // `in_plane`: it covers the largest coordinate of the scene. The
         // other half covers the rounding of the padded bounds.
         let (lo, hi) = self.accel.bounds();
+        let mesh_of_slot = |slot: u32| self.mesh_of(slot, self.accel.slot_prims()[slot as usize]);
         let surface_of = |e: &AreaLight| {
             let pad = 2.0 * (near(e.v.iter().copied().chain([lo, hi])) + off_plane(Vec3A::ONE, self.render_shift));
             let (e_lo, e_hi) = bounds(e.v);
-            let (mut surface, mut tests) = (None, 0);
+            let own_mesh = self.mesh_of(e.slot, e.prim);
+            let (mut surface, mut visits, mut own_tests) = (None, 0, 0);
             self.accel.overlapping((e_lo - pad, e_hi + pad), |slot| {
+                visits += 1;
+                if visits > MAX_CANDIDATES {
+                    return ControlFlow::Break(());
+                }
+                let own = mesh_of_slot(slot) == own_mesh;
+                if slot == e.slot || (own && own_tests == MAX_OWN_MESH_TESTS) {
+                    return ControlFlow::Continue(());
+                }
                 let t = self.accel.vertices(slot);
                 let tolerance = near(e.v.iter().chain(&t).copied()) + off_plane(e.n, self.render_shift);
-                if slot == e.slot || !in_plane(&e.v, e.n, &t, tolerance) {
+                if !in_plane(&e.v, e.n, &t, tolerance) {
                     return ControlFlow::Continue(());
                 }
                 if overlap_in_plane(&e.v, e.n, &t, tolerance) {
@@ -56,12 +66,8 @@ impl Scene {
                     });
                     return ControlFlow::Break(());
                 }
-                tests += 1;
-                if tests < MAX_COPLANAR_TESTS {
-                    ControlFlow::Continue(())
-                } else {
-                    ControlFlow::Break(())
-                }
+                own_tests += own as u32;
+                ControlFlow::Continue(())
             });
             surface
         };
@@ -161,13 +167,21 @@ fn kept_axes(dropped: usize) -> [usize; 2] {
     [(dropped + 1) % 3, (dropped + 2) % 3]
 }
 
-/// An emitter's overlap test (`overlap_in_plane`) with at most this many
-/// triangles in its plane. An emitting disk cut as a fan of n triangles
-/// has every other triangle in its plane and its bounds, none overlapping
-/// it: with no bound the check cost n^2 tests, 98 s for a fan of 64,000
-/// (an audit, session 44). A surface an emitter lies on is nearly always
-/// among the first few found in its plane, as the triangles under it.
-const MAX_COPLANAR_TESTS: u32 = 64;
+/// An emitter's overlap tests (`overlap_in_plane`) with triangles of its
+/// own mesh in its plane, at most. An emitting disk cut as a fan of n
+/// triangles has every other triangle in its plane and its bounds, none
+/// overlapping it, and with no bound the check made n^2 tests (an audit,
+/// session 44). Its own mesh overlaps an emitter where the mesh folds onto
+/// itself (a cuboid flat on one axis), among its few nearest triangles.
+/// Other meshes' triangles in the plane are all tested: charged to one
+/// bound, the fan's triangles used it up before a ceiling's under them,
+/// and a fan of 128 on a ceiling of 200 triangles went unnamed (a review).
+const MAX_OWN_MESH_TESTS: u32 = 64;
+
+/// The triangles the box query visits for one emitter, at most: what
+/// bounds the check on the fan, whose every triangle the query finds for
+/// every other (16,000 triangles: 5.4 s; 64,000: 98 s).
+const MAX_CANDIDATES: u32 = 4096;
 
 /// Whether triangle `t` lies in the plane of emitter `e` (unit normal `n`)
 /// within `tolerance` (a few units in the last place of their

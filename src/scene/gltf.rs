@@ -868,9 +868,9 @@ impl<'a> Importer<'a> {
                 self.warn(
                     label,
                     format!(
-                        "ior {ior} is within {:.1e} of 1 on a surface this rough: f32 cannot resolve its refraction, \
-                         a smooth interface used",
-                        dielectric.min_index_contrast()
+                        "ior {ior} is too near 1 for a rough surface (it must differ from 1 by {}): f32 cannot \
+                         resolve its refraction, a smooth interface used",
+                        dielectric.min_index_contrast_text()
                     ),
                 );
                 dielectric = Dielectric::new(Spectrum::Constant(ior), 0.0, 0.0);

@@ -880,10 +880,10 @@ impl<'a> Ctx<'a> {
                     return Err(self.err(
                         &at("ior"),
                         format!(
-                            "a rough dielectric's ior must be 1 or differ from 1 by at least {:.1e} at its roughness \
-                             (here {} to {}): nearer, f32 cannot resolve its refraction (use ior 1 for an \
-                             index-matched interface, a smooth one, or a rougher one)",
-                            dielectric.min_index_contrast(),
+                            "a rough dielectric's ior must be 1 or differ from 1 by {} (here {} to {}): nearer, \
+                             f32 cannot resolve its refraction (use ior 1 for an index-matched interface, a smooth \
+                             one, or a rougher one)",
+                            dielectric.min_index_contrast_text(),
                             dielectric.eta.min_value(),
                             dielectric.eta.max_value()
                         ),
