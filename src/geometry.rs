@@ -1,6 +1,5 @@
 //! Rays, shading frames and robust ray-origin offsetting.
 
-use crate::select::select_u32;
 use glam::Vec3A;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -119,29 +118,36 @@ impl SurfacePoint {
         }
     }
 
-    /// Whether `q` lies off this point's plane (through `p`, normal `n`) by
-    /// more than the two points' rounding (`p_error`) could move it: if
-    /// not, which side of the plane `q` is on, and so which side of the
-    /// surface a segment to it leaves by, is decided by rounding. (The
-    /// normal's own rounding, which grows on sliver triangles and with the
-    /// distance to `q`, is not counted.)
-    #[inline]
-    pub fn clearly_off_plane(&self, q: &SurfacePoint) -> bool {
-        (q.p - self.p).dot(self.n).abs() > self.n.abs().dot(self.p_error + q.p_error)
-    }
-
-    /// Whether a segment between this point and `q` leaves each end's
-    /// surface by a side rounding cannot flip: each end clearly off the
-    /// other's plane (an end off any surface, n = 0, has no plane). If not,
-    /// the geometric cosine at an end is within rounding of 0, so the
+    /// Where a segment along `d` (any length) leaves this point, and
+    /// whether it leaves by a side rounding cannot flip. The origin is
+    /// `offset_ray_origin`'s (the point itself off surfaces, where n = 0
+    /// makes the offset 0 and `step_away` moves nothing). The side is
+    /// resolved when the far end, `far`, lies off this point's plane
+    /// (through `p`, normal `n`) by more than the two points' rounding
+    /// (`p_error`) could move it: |n . d| > |n| . (p_error + far.p_error).
+    /// If not, the geometric cosine here is within rounding of 0, so the
     /// connection carries (almost) nothing, while in f32 it could join the
     /// two faces of one wall, which the segment test, skipping both end
     /// triangles and their coplanar neighbours, cannot see it cross: light
     /// inside a closed shell lit the room outside through such segments (an
     /// audit and a review, session 43; `a_closed_shell_keeps_its_light_in`).
-    #[inline]
-    pub fn sides_resolved(&self, q: &SurfacePoint) -> bool {
-        (self.n == Vec3A::ZERO || self.clearly_off_plane(q)) && (q.n == Vec3A::ZERO || q.clearly_off_plane(self))
+    /// (The normal's own rounding, which grows on sliver triangles and with
+    /// the distance to `far`, is not counted.)
+    ///
+    /// Written without a test of n = 0: the bound carries |n| . MIN_POSITIVE
+    /// more. Off surfaces (n = 0) that is 0, the cosine is 0 too and `>=`
+    /// passes: such an end has no plane. On a surface the 1-norm of n is at
+    /// least 1, so the extra term is above 0 (Rust never flushes subnormals
+    /// to zero) and a far end exactly in the plane fails; added to any
+    /// error bound above ~1e-30 it rounds away. The cosine also chooses the
+    /// offset's side. Against testing n = 0 at each use and taking the dot
+    /// product twice, ~18 instructions a segment fewer
+    /// (docs/performance-log.md, "Session 45").
+    #[inline(always)]
+    fn depart(&self, d: Vec3A, far: &SurfacePoint) -> (Vec3A, bool) {
+        let cos = self.n.dot(d);
+        let bound = self.n.abs().dot(self.p_error + far.p_error + Vec3A::splat(f32::MIN_POSITIVE));
+        (offset_to_side(self.p, self.p_error, self.n, cos), cos.abs() >= bound)
     }
 }
 
@@ -167,7 +173,7 @@ pub fn shading_normal(n: Vec3A, ng: Vec3A) -> Vec3A {
 pub struct Shadow {
     pub ray: Ray,
     pub t_max: f32,
-    /// `SurfacePoint::sides_resolved` of a segment's ends (true for a ray
+    /// `SurfacePoint::depart`'s test of a segment's ends (true for a ray
     /// to infinity): if not, the segment counts as blocked, since it may
     /// cross the very surfaces it skips.
     pub ends_resolved: bool,
@@ -197,15 +203,15 @@ impl Shadow {
     ///
     /// Skipping the end triangles assumes each end leaves its surface by
     /// the side the segment points to; where rounding decides that side
-    /// (`SurfacePoint::sides_resolved`), the segment is blocked.
+    /// (`SurfacePoint::depart`), the segment is blocked.
     #[inline(always)]
     pub fn segment(a: SurfacePoint, b: SurfacePoint) -> Self {
         let (a, b) = if b.n == Vec3A::ZERO && a.n != Vec3A::ZERO { (b, a) } else { (a, b) };
         let d = b.p - a.p;
-        let o = a.spawn_origin(d);
-        let target = b.spawn_origin(-d);
+        let (o, a_resolved) = a.depart(d, &b);
+        let (target, b_resolved) = b.depart(-d, &a);
         let ray = Ray { o, d: target - o, skip: [a.slot, b.slot] };
-        Self { ray, t_max: 1.0, ends_resolved: a.sides_resolved(&b) }
+        Self { ray, t_max: 1.0, ends_resolved: a_resolved && b_resolved }
     }
 
     /// From a point towards infinity in direction `w` (an infinite light).
@@ -228,8 +234,14 @@ impl Shadow {
 /// src/accel/lanes.rs).
 #[inline]
 pub fn offset_ray_origin(p: Vec3A, p_error: Vec3A, n: Vec3A, w: Vec3A) -> Vec3A {
+    offset_to_side(p, p_error, n, n.dot(w))
+}
+
+/// `offset_ray_origin` with the cosine n . w given.
+#[inline(always)]
+fn offset_to_side(p: Vec3A, p_error: Vec3A, n: Vec3A, cos: f32) -> Vec3A {
     let d = n.abs().dot(p_error);
-    let offset = if n.dot(w) < 0.0 { -d * n } else { d * n };
+    let offset = if cos < 0.0 { -d * n } else { d * n };
     step_away(p + offset, offset)
 }
 
@@ -238,9 +250,34 @@ pub fn offset_ray_origin(p: Vec3A, p_error: Vec3A, n: Vec3A, w: Vec3A) -> Vec3A 
 /// steps on the bits (the magnitude grows by one ulp when po and o have the
 /// same sign and shrinks when they differ; from +-0 the step lands on the
 /// smallest subnormal of o's sign). Selects rather than branches: the signs
-/// of a surface normal's components are as good as random.
-#[inline]
+/// of a surface normal's components are as good as random. The three axes
+/// in one SSE2 register: a step per axis in scalar code took ~10
+/// instructions more per offset point (docs/performance-log.md,
+/// "Session 45").
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
 fn step_away(po: Vec3A, o: Vec3A) -> Vec3A {
+    use std::arch::x86_64::*;
+    // SAFETY: these intrinsics only need SSE2, which every x86-64 CPU has
+    // (it is part of the x86-64 baseline target); none touches memory.
+    unsafe {
+        let (x, o) = (_mm_castps_si128(po.into()), _mm_castps_si128(o.into()));
+        let (sign, one, zero) = (_mm_set1_epi32(i32::MIN), _mm_set1_epi32(1), _mm_setzero_si128());
+        let select = |m: __m128i, a: __m128i, b: __m128i| _mm_or_si128(_mm_and_si128(m, a), _mm_andnot_si128(m, b));
+        let toward = _mm_or_si128(_mm_srai_epi32::<31>(_mm_xor_si128(x, o)), one);
+        let x_is_zero = _mm_cmpeq_epi32(_mm_andnot_si128(sign, x), zero);
+        let moved = select(x_is_zero, _mm_or_si128(_mm_and_si128(o, sign), one), _mm_add_epi32(x, toward));
+        let o_is_zero = _mm_cmpeq_epi32(_mm_andnot_si128(sign, o), zero);
+        Vec3A::from(_mm_castsi128_ps(select(o_is_zero, x, moved)))
+    }
+}
+
+/// `step_away` one axis at a time: off x86-64, and the reference its SSE2
+/// form is tested against.
+#[cfg(any(test, not(target_arch = "x86_64")))]
+#[inline]
+fn step_away_scalar(po: Vec3A, o: Vec3A) -> Vec3A {
+    use crate::select::select_u32;
     const SIGN: u32 = 0x8000_0000;
     let step = |x: f32, o: f32| {
         let (x, o) = (x.to_bits(), o.to_bits());
@@ -250,6 +287,9 @@ fn step_away(po: Vec3A, o: Vec3A) -> Vec3A {
     };
     Vec3A::new(step(po.x, o.x), step(po.y, o.y), step(po.z, o.z))
 }
+
+#[cfg(not(target_arch = "x86_64"))]
+use step_away_scalar as step_away;
 
 #[cfg(test)]
 mod tests {
@@ -267,8 +307,10 @@ mod tests {
         }
     }
 
-    /// The steps on the bits against the standard library's next_up and
-    /// next_down, on the special values and on random bit patterns.
+    /// The steps on the bits, in both forms, against the standard library's
+    /// next_up and next_down, on the special values and on random bit
+    /// patterns, on each axis (-x moves the other way on the second, and
+    /// o = 0 leaves the third as it is).
     #[test]
     fn step_away_is_next_up_or_next_down() {
         let mut specials = vec![0.0f32, -0.0, f32::MIN_POSITIVE, -f32::MIN_POSITIVE, 1e-45, -1e-45, 1.0, -1.0];
@@ -290,8 +332,11 @@ mod tests {
                 } else {
                     x
                 };
-                let got = step_away(Vec3A::splat(x), Vec3A::splat(o)).x;
-                assert_eq!(got.to_bits(), want.to_bits(), "x = {x:e}, o = {o:e}");
+                for step in [step_away, step_away_scalar] {
+                    let got = step(Vec3A::new(x, -x, want), Vec3A::new(o, -o, 0.0));
+                    let want = [want, -want, want].map(f32::to_bits);
+                    assert_eq!(got.to_array().map(f32::to_bits), want, "x = {x:e}, o = {o:e}");
+                }
             }
         }
     }
