@@ -100,28 +100,18 @@ impl SurfacePoint {
         Self { p, p_error: Vec3A::ZERO, n: Vec3A::ZERO, slot: NO_TRIANGLE }
     }
 
-    /// A ray leaving the point towards `w`, from `spawn_origin`, that need
-    /// not test the point's own triangle.
+    /// A ray leaving the point towards `w`, from `offset_ray_origin`, that
+    /// need not test the point's own triangle. Off surfaces (n = 0) the
+    /// offset is 0 and the ray starts at the point itself (a -0 coordinate
+    /// becoming +0), with no test of n.
     #[inline]
     pub fn spawn_ray(&self, w: Vec3A) -> Ray {
-        Ray { o: self.spawn_origin(w), d: w, skip: [self.slot, NO_TRIANGLE] }
-    }
-
-    /// The origin of a ray leaving towards `w`: off the surface when there is
-    /// one (`offset_ray_origin`), else the point itself.
-    #[inline]
-    pub fn spawn_origin(&self, w: Vec3A) -> Vec3A {
-        if self.n == Vec3A::ZERO {
-            self.p
-        } else {
-            offset_ray_origin(self.p, self.p_error, self.n, w)
-        }
+        Ray { o: offset_ray_origin(self.p, self.p_error, self.n, w), d: w, skip: [self.slot, NO_TRIANGLE] }
     }
 
     /// Where a segment along `d` (any length) leaves this point, and
     /// whether it leaves by a side rounding cannot flip. The origin is
-    /// `offset_ray_origin`'s (the point itself off surfaces, where n = 0
-    /// makes the offset 0 and `step_away` moves nothing). The side is
+    /// `spawn_ray`'s (the point itself off surfaces). The side is
     /// resolved when the far end, `far`, lies off this point's plane
     /// (through `p`, normal `n`) by more than the two points' rounding
     /// (`p_error`) could move it: |n . d| > |n| . (p_error + far.p_error).
