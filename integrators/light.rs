@@ -92,7 +92,7 @@ fn specular_in_view(scene: &Scene) -> Vec<String> {
     let mut names: Vec<String> = Vec::new();
     for (v, _, material, _) in scene.triangles() {
         let m = &scene.materials[material as usize];
-        if m.bsdf.flags().is_non_specular() || names.contains(&m.name) {
+        if m.is_non_specular() || names.contains(&m.name) {
             continue;
         }
         let projected = v.map(|p| cam.project(p - cam.position));

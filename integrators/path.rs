@@ -137,9 +137,9 @@ impl PathTracer {
             if depth == self.max_depth {
                 break;
             }
-            let bsdf = scene.bsdf_at(&si, lambda);
-            let wo = si.frame.to_local(si.wo);
-            if bsdf.flags().is_non_specular() {
+            let material = scene.material_at(&si, lambda);
+            let (bsdf, wo) = (material.bsdf(), si.frame.to_local(si.wo));
+            if material.is_non_specular() {
                 l += beta * next_event(scene, &si, bsdf, wo, sampler, lambda);
             }
             let Some(bs) = bsdf.sample(wo, sampler.get1d(), sampler.get2d(), lambda, TransportMode::Radiance) else {

@@ -57,7 +57,7 @@ impl Integrator for SimplePath {
             if depth == self.max_depth {
                 break;
             }
-            let bsdf = scene.bsdf_at(&si, lambda);
+            let bsdf = scene.material_at(&si, lambda).bsdf();
             let wo = si.frame.to_local(si.wo);
             let Some(bs) = bsdf.sample(wo, sampler.get1d(), sampler.get2d(), lambda, TransportMode::Radiance) else {
                 break;

@@ -111,7 +111,7 @@ pub fn export(scene: &Scene, dir: &Path, spp: u32) -> Result<usize> {
     let groups = group_triangles(scene);
     for g in &groups {
         let material = &scene.materials[g.material as usize];
-        if !matches!(material.bsdf, Bsdf::Diffuse(_)) {
+        if !matches!(material.bsdf(), Bsdf::Diffuse(_)) {
             bail!("material {}: only diffuse materials are exported", material.name);
         }
     }
@@ -259,7 +259,7 @@ fn sensor_xml(xml: &mut String, cam: &Camera, spp: u32) {
 /// emits, its area emitter.
 fn shape_xml(xml: &mut String, scene: &Scene, g: &Group, file: &str) {
     let material = &scene.materials[g.material as usize];
-    let Bsdf::Diffuse(d) = &material.bsdf else {
+    let Bsdf::Diffuse(d) = material.bsdf() else {
         unreachable!("export checks that every material is diffuse");
     };
     let _ = writeln!(xml, "  <!-- material {} -->", xml_escape(&material.name));

@@ -62,11 +62,11 @@
 use crate::camera::CameraWiSample;
 use crate::geometry::{Frame, Ray, SurfacePoint};
 use crate::light::Light;
-use crate::materials::{Bsdf, TransportMode};
+use crate::materials::TransportMode;
 use crate::render::Splat;
 use crate::roulette::russian_roulette;
 use crate::sampling::Sampler;
-use crate::scene::{Scene, SurfaceInteraction};
+use crate::scene::{Material, Scene, SurfaceInteraction};
 use crate::select::select_f32;
 use crate::spectrum::{SampledSpectrum, SampledWavelengths};
 use glam::{Vec2, Vec3A};
@@ -165,9 +165,9 @@ impl Vertex {
         Self { kind, si, beta, delta: false, connectible, pdf_fwd, pdf_rev: 0.0, g_rev: 0.0, d_vcm: 0.0, d_vc: 0.0 }
     }
 
-    /// A scattering point of a walk, with the BSDF found there.
-    fn surface(si: SurfaceInteraction, bsdf: &Bsdf, beta: SampledSpectrum) -> Self {
-        Self { connectible: bsdf.flags().is_non_specular(), ..Self::new(VertexKind::Surface, si, beta, 0.0) }
+    /// A scattering point of a walk, with the material found there.
+    fn surface(si: SurfaceInteraction, material: &Material, beta: SampledSpectrum) -> Self {
+        Self { connectible: material.is_non_specular(), ..Self::new(VertexKind::Surface, si, beta, 0.0) }
     }
 
     fn endpoint(kind: VertexKind, at: SurfacePoint, wo: Vec3A, light: Option<u32>) -> SurfaceInteraction {
@@ -481,8 +481,9 @@ fn random_walk<const MIS: bool>(
         };
         // Fetch the BSDF now, even if the walk stops here: connections will
         // evaluate it, and a dispersive one must end the secondaries first.
-        let bsdf = scene.bsdf_at(&si, lambda);
-        push_vertex::<MIS>(path, Vertex::surface(si, bsdf, beta), pdf);
+        let material = scene.material_at(&si, lambda);
+        push_vertex::<MIS>(path, Vertex::surface(si, material, beta), pdf);
+        let bsdf = material.bsdf();
         if path.len() >= max_vertices {
             return;
         }

@@ -72,7 +72,7 @@ pub fn specular_chains_to_point_lights(scene: &Scene) -> Vec<String> {
 pub fn point_lights_with_specular(scene: &Scene, message: impl Fn(&str, &str) -> String) -> Vec<String> {
     let specular: Vec<&str> = scene
         .materials_in_use()
-        .filter(|m| m.bsdf.flags().is_specular() && !m.bsdf.flags().is_non_specular())
+        .filter(|m| m.bsdf().flags().is_specular() && !m.is_non_specular())
         .map(|m| m.name.as_str())
         .collect();
     if specular.is_empty() {

@@ -135,7 +135,7 @@ fn a_mirrored_or_stretched_camera_is_named() {
 fn metallic_base_colour_becomes_a_conductor_with_that_reflectance() {
     let scene = load("Box.gltf").builder.build();
     // Box.gltf: baseColorFactor (0.8, 0, 0), metallic and roughness default 1.
-    let Bsdf::Conductor(c) = &scene.materials[0].bsdf else { panic!("{:?}", scene.materials[0].bsdf) };
+    let Bsdf::Conductor(c) = scene.materials[0].bsdf() else { panic!("{:?}", scene.materials[0].bsdf()) };
     let f0 = rgb_albedo([0.8, 0.0, 0.0]);
     for l in [420.0, 500.0, 580.0, 650.0] {
         let (n, k) = (c.eta.eval(l), c.k.eval(l));
@@ -155,7 +155,7 @@ fn material_rules_threshold_metallic_and_transmission_with_warnings() {
     let g = parse(&v, "Box (metallic 0.3)").unwrap();
     assert!(has(&g.messages, "metallic 0.3 is neither 0 nor 1: rendered as a non-metal (threshold 0.5)"));
     let scene = g.builder.build();
-    assert!(matches!(scene.materials[0].bsdf, Bsdf::Diffuse(_)));
+    assert!(matches!(scene.materials[0].bsdf(), Bsdf::Diffuse(_)));
 
     v["materials"][0]["extensions"] =
         json!({"KHR_materials_transmission": {"transmissionFactor": 1.0}, "KHR_materials_ior": {"ior": 1.33}});
@@ -163,7 +163,7 @@ fn material_rules_threshold_metallic_and_transmission_with_warnings() {
     let g = parse(&v, "Box (glass)").unwrap();
     assert!(has(&g.messages, "does not tint transmission"), "{:#?}", g.messages);
     let scene = g.builder.build();
-    let Bsdf::Dielectric(d) = &scene.materials[0].bsdf else { panic!("{:?}", scene.materials[0].bsdf) };
+    let Bsdf::Dielectric(d) = scene.materials[0].bsdf() else { panic!("{:?}", scene.materials[0].bsdf()) };
     assert_eq!(d.eta, Spectrum::Constant(1.33));
     assert!((d.distrib.alpha_x - 0.25).abs() < 1e-6);
 
@@ -173,7 +173,8 @@ fn material_rules_threshold_metallic_and_transmission_with_warnings() {
     let g = parse(&v, "Box (ior 1.00015)").unwrap();
     let said = "ior 1.00015 is too near 1 for a rough surface (it must differ from 1 by at least 2.00e-4 at alpha 0.25";
     assert!(has(&g.messages, said), "{:#?}", g.messages);
-    let Bsdf::Dielectric(d) = &g.builder.build().materials[0].bsdf else { panic!("not a dielectric") };
+    let scene = g.builder.build();
+    let Bsdf::Dielectric(d) = scene.materials[0].bsdf() else { panic!("not a dielectric") };
     assert_eq!(d.eta, Spectrum::Constant(1.00015));
     assert!(d.distrib.effectively_smooth());
 }
@@ -182,7 +183,7 @@ fn material_rules_threshold_metallic_and_transmission_with_warnings() {
 fn texture_mean_is_srgb_decoded() {
     let g = load("BoxTextured.gltf");
     let scene = g.builder.build();
-    let Bsdf::Diffuse(d) = &scene.materials[0].bsdf else { panic!() };
+    let Bsdf::Diffuse(d) = scene.materials[0].bsdf() else { panic!() };
     // The Cesium logo texture (256 x 256, 8-bit palette PNG), decoded by
     // hand outside prism (base64, zlib, PNG filters, palette; the sRGB
     // transfer function per texel, then the mean): linear (0.4036, 0.5237,
@@ -211,12 +212,12 @@ fn out_of_range_factors_are_clamped_before_the_texture_mean() {
     let g = parse(&v, "BoxTextured (roughnessFactor 1e39)").unwrap();
     assert!(has(&g.messages, "roughnessFactor [inf] is outside [0, 1] (invalid glTF): clamped"), "{:?}", g.messages);
     let scene = g.builder.build();
-    let Bsdf::Conductor(c) = &scene.materials[0].bsdf else { panic!("not a conductor") };
+    let Bsdf::Conductor(c) = scene.materials[0].bsdf() else { panic!("not a conductor") };
     assert_eq!((c.distrib.alpha_x, c.distrib.alpha_y), (0.0, 0.0), "clamped to 1, times a mean of 0");
     v["materials"][0]["pbrMetallicRoughness"] =
         json!({"baseColorTexture": {"index": 0}, "baseColorFactor": [1e39, 1e39, 1e39, 1.0], "metallicFactor": 0.0});
     let scene = parse(&v, "BoxTextured (baseColorFactor 1e39)").unwrap().builder.build();
-    let Bsdf::Diffuse(d) = &scene.materials[0].bsdf else { panic!("not diffuse") };
+    let Bsdf::Diffuse(d) = scene.materials[0].bsdf() else { panic!("not diffuse") };
     let blue = reflectance_rgb(&d.reflectance);
     assert!(blue[0] < 0.05 && blue[1] < 0.05 && blue[2] > 0.95, "reflectance {blue:?}, expected pure blue");
 }
@@ -548,7 +549,7 @@ fn json_scene_includes_gltf_with_material_overrides() {
 
     // Without an override the glTF material maps itself (a conductor).
     let scene = parse_json(&scene_text("{}", "")).unwrap();
-    assert!(scene.materials.iter().any(|m| matches!(m.bsdf, Bsdf::Conductor(_))));
+    assert!(scene.materials.iter().any(|m| matches!(m.bsdf(), Bsdf::Conductor(_))));
     // `material` replaces every glTF material.
     let scene = parse_json(&scene_text("{}", r#", "material": "grey""#)).unwrap();
     assert_eq!(scene.materials.len(), 1);
