@@ -113,8 +113,8 @@ impl SurfacePoint {
     /// whether it leaves by a side rounding cannot flip. The origin is
     /// `spawn_ray`'s (the point itself off surfaces). The side is
     /// resolved when the far end, `far`, lies off this point's plane
-    /// (through `p`, normal `n`) by more than the two points' rounding
-    /// (`p_error`) could move it: |n . d| > |n| . (p_error + far.p_error).
+    /// (through `p`, normal `n`) by at least what the two points' rounding
+    /// (`p_error`) could move it: |n . d| >= |n| . (p_error + far.p_error).
     /// If not, the geometric cosine here is within rounding of 0, so the
     /// connection carries (almost) nothing, while in f32 it could join the
     /// two faces of one wall, which the segment test, skipping both end
@@ -124,15 +124,19 @@ impl SurfacePoint {
     /// (The normal's own rounding, which grows on sliver triangles and with
     /// the distance to `far`, is not counted.)
     ///
-    /// Written without a test of n = 0: the bound carries |n| . MIN_POSITIVE
-    /// more. Off surfaces (n = 0) that is 0, the cosine is 0 too and `>=`
-    /// passes: such an end has no plane. On a surface the 1-norm of n is at
-    /// least 1, so the extra term is above 0 (Rust never flushes subnormals
-    /// to zero) and a far end exactly in the plane fails; added to any
-    /// error bound above ~1e-30 it rounds away. The cosine also chooses the
-    /// offset's side. Against testing n = 0 at each use and taking the dot
-    /// product twice, ~18 instructions a segment fewer
-    /// (docs/performance-log.md, "Session 45").
+    /// Written without a test of n = 0, which an end off any surface (the
+    /// pinhole, a point light) has: the bound carries |n| . MIN_POSITIVE
+    /// more, which is 0 there, where the cosine is 0 too, so `>=` passes:
+    /// such an end has no plane. On a surface the extra term is above 0
+    /// (|n|_1 is about 1 or more, and Rust never flushes subnormals to
+    /// zero), so a far end exactly in the plane fails even where both
+    /// points are exact; next to any error bound above ~1e-30 it rounds
+    /// away. Until session 45 the test was `n == 0 || |n . d| > bound`: the
+    /// two differ only where |n . d| equals the bound exactly, which the
+    /// old form blocked. The cosine also chooses the offset's side. Against
+    /// testing n = 0 at each use and taking the dot product twice, this
+    /// saves ~18 instructions a segment (docs/performance-log.md,
+    /// "Session 45").
     #[inline(always)]
     fn depart(&self, d: Vec3A, far: &SurfacePoint) -> (Vec3A, bool) {
         let cos = self.n.dot(d);
@@ -241,9 +245,9 @@ fn offset_to_side(p: Vec3A, p_error: Vec3A, n: Vec3A, cos: f32) -> Vec3A {
 /// same sign and shrinks when they differ; from +-0 the step lands on the
 /// smallest subnormal of o's sign). Selects rather than branches: the signs
 /// of a surface normal's components are as good as random. The three axes
-/// in one SSE2 register: a step per axis in scalar code took ~10
-/// instructions more per offset point (docs/performance-log.md,
-/// "Session 45").
+/// in one SSE2 register: the scalar steps, three lanes' integer work and
+/// their moves between registers, cost `bdpt` 0.5 % more instructions
+/// (docs/performance-log.md, "Session 45").
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
 fn step_away(po: Vec3A, o: Vec3A) -> Vec3A {

@@ -54,7 +54,7 @@
 //! estimate stays unbiased.
 //!
 //! Dispersion: both subpaths of a sample share one `SampledWavelengths` and
-//! fetch BSDFs with `Scene::bsdf_at`, so a dispersive surface met by either
+//! fetch materials with `Scene::material_at`, so a dispersive surface met by either
 //! walk keeps only the hero wavelength for the whole sample; connections are
 //! evaluated after both walks, and the driver converts splats with the final
 //! wavelengths (TRANSPORT-NOTES §7).

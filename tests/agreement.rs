@@ -130,7 +130,7 @@ fn agreement_matrix_cornell_dispersion() {
 /// (roughness 0.5, GGX alpha 0.25). A rough dispersive interface is
 /// sampled and evaluated at the hero wavelength only, so every path that
 /// meets it keeps the hero alone, on the camera and the light subpaths
-/// alike (`Scene::bsdf_at`); light and bdpt agree with path. The other
+/// alike (`Scene::material_at`); light and bdpt agree with path. The other
 /// dispersion tests have smooth glass only (an audit, session 43).
 /// Controls: light x1.05 is rejected (Y chi-square p 2.7e-6); light
 /// tracing's subpath walking on a copy of the wavelengths, so that its

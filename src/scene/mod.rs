@@ -38,9 +38,10 @@ pub fn take_ray_count() -> u64 {
     RAYS.with(|c| c.replace(0))
 }
 
-/// A named BSDF, with the two of its properties that a walk asks at every
-/// hit found once (each a `match` on the BSDF's kind otherwise: ~0.4 % of
-/// a `bdpt` sample's instructions, docs/performance-log.md, "Session 45").
+/// A named BSDF. It caches the two properties that a walk asks of the BSDF
+/// at every hit, non-specular and dispersive: each was a `match` on the
+/// BSDF's kind, together ~0.34 % of a `bdpt` sample's instructions
+/// (docs/performance-log.md, "Session 45").
 #[derive(Clone, Debug)]
 pub struct Material {
     pub name: String,
@@ -55,6 +56,7 @@ impl Material {
         Self { name: name.to_string(), bsdf, non_specular, dispersive }
     }
 
+    /// The BSDF, fixed at `new` (the cached properties follow it).
     #[inline]
     pub fn bsdf(&self) -> &Bsdf {
         &self.bsdf
@@ -189,13 +191,18 @@ impl SurfaceInteraction {
     /// denominator is 0. `wo` and `wi` are world directions.
     ///
     /// Exactly 1 where the shading normal is the geometric one (flat
-    /// shading). The formula gives 1 there too, or 0 where wo or wi lies
-    /// in the surface, and there every BSDF's f is 0 already (each needs
-    /// cos theta != 0 in the shading frame, here the geometric one), so
-    /// the product is the same; only an underflow of |wo.ng| |wi.ng| would
-    /// tell them apart. The four dot products and the division skipped cost
-    /// `bdpt` 0.36 % of its instructions (docs/performance-log.md,
-    /// "Session 45").
+    /// shading), the formula's value wherever its denominator is not 0.
+    /// Where it is 0, the formula gave 0: wo or wi lies in the surface in
+    /// f32 (or the product underflows). At a connection (`Vertex::scatter`)
+    /// the BSDF's f is 0 there already, since each BSDF tests the same
+    /// cosine, taken in the shading frame, for 0 (the dielectric's f can
+    /// be large or infinite only if the product underflows, |cos| below
+    /// ~1e-22 at both ends). In a walk, a direction sampled within ~1e-7 of
+    /// the surface can round into it in world space: its walk, which the 0
+    /// ended, goes on with its weight. Both are events of measure zero; the
+    /// images of every scene of `scenes/` are bit-identical. The four dot
+    /// products and the division skipped cost `bdpt` 0.36 % of its
+    /// instructions (docs/performance-log.md, "Session 45").
     #[inline]
     pub fn shading_correction(&self, wo: Vec3A, wi: Vec3A) -> f32 {
         if self.frame.n == self.ng {
