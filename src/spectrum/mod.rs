@@ -27,6 +27,32 @@ use std::sync::Arc;
 /// Number of 1 nm samples in [LAMBDA_MIN, LAMBDA_MAX].
 pub const N_DENSE: usize = (cie::LAMBDA_MAX_I - cie::LAMBDA_MIN_I + 1) as usize;
 
+/// Slots of a `DenseTable`: a power of two above `N_DENSE`.
+const DENSE_SLOTS: usize = (N_DENSE + 1).next_power_of_two();
+
+/// A dense spectrum's values at 360..=830 nm (`N_DENSE`), then zeros up to
+/// `DENSE_SLOTS`, so that a lookup masks its index into the table rather
+/// than testing it: `dense_index4` clamps an index out of range to
+/// `N_DENSE`, a zero slot. A bounds check and a select per wavelength
+/// cost `bdpt` 1.5 % of its instructions (docs/performance-log.md,
+/// "Session 45"). Built only by `Spectrum::from_dense`, which zeroes the
+/// padding.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DenseTable([f32; DENSE_SLOTS]);
+
+impl DenseTable {
+    /// The values over the visible range.
+    fn values(&self) -> &[f32] {
+        &self.0[..N_DENSE]
+    }
+
+    /// The value at a `dense_index4` index (0 out of range).
+    #[inline(always)]
+    fn at(&self, i: u32) -> f32 {
+        self.0[i as usize & (DENSE_SLOTS - 1)]
+    }
+}
+
 /// A spectral distribution over wavelength (nm).
 #[derive(Clone, Debug, PartialEq)]
 pub enum Spectrum {
@@ -35,7 +61,7 @@ pub enum Spectrum {
     /// One value for each integer wavelength 360..=830 nm, looked up at the
     /// nearest integer (as pbrt-v4 does): the value there, or for a
     /// tabulated spectrum its mean over that nanometre (`piecewise_linear`).
-    Dense(Arc<[f32; N_DENSE]>),
+    Dense(Arc<DenseTable>),
 }
 
 impl Spectrum {
@@ -75,7 +101,9 @@ impl Spectrum {
         if table.iter().all(|&v| v == table[0]) {
             Spectrum::Constant(table[0])
         } else {
-            Spectrum::Dense(Arc::new(table))
+            let mut slots = [0.0; DENSE_SLOTS];
+            slots[..N_DENSE].copy_from_slice(&table);
+            Spectrum::Dense(Arc::new(DenseTable(slots)))
         }
     }
 
@@ -93,10 +121,7 @@ impl Spectrum {
     pub fn eval(&self, lambda: f32) -> f32 {
         match self {
             Spectrum::Constant(c) => *c,
-            Spectrum::Dense(t) => match dense_index(lambda) {
-                Some(i) => t[i],
-                None => 0.0,
-            },
+            Spectrum::Dense(t) => t.at(dense_index4(Vec4::splat(lambda))[0]),
         }
     }
 
@@ -106,9 +131,8 @@ impl Spectrum {
         match self {
             Spectrum::Constant(c) => SampledSpectrum::splat(*c),
             Spectrum::Dense(t) => {
-                let at = |i: u32| t.get(i as usize).copied().unwrap_or(0.0);
                 let [a, b, c, d] = lambda.dense;
-                SampledSpectrum::new(at(a), at(b), at(c), at(d))
+                SampledSpectrum::new(t.at(a), t.at(b), t.at(c), t.at(d))
             }
         }
     }
@@ -121,7 +145,7 @@ impl Spectrum {
     pub fn max_value(&self) -> f32 {
         match self {
             Spectrum::Constant(c) => *c,
-            Spectrum::Dense(t) => t.iter().copied().fold(f32::NEG_INFINITY, f32::max),
+            Spectrum::Dense(t) => t.values().iter().copied().fold(f32::NEG_INFINITY, f32::max),
         }
     }
 
@@ -129,7 +153,7 @@ impl Spectrum {
     pub fn is_finite(&self) -> bool {
         match self {
             Spectrum::Constant(c) => c.is_finite(),
-            Spectrum::Dense(t) => t.iter().all(|v| v.is_finite()),
+            Spectrum::Dense(t) => t.values().iter().all(|v| v.is_finite()),
         }
     }
 
@@ -137,7 +161,7 @@ impl Spectrum {
     pub fn min_value(&self) -> f32 {
         match self {
             Spectrum::Constant(c) => *c,
-            Spectrum::Dense(t) => t.iter().copied().fold(f32::INFINITY, f32::min),
+            Spectrum::Dense(t) => t.values().iter().copied().fold(f32::INFINITY, f32::min),
         }
     }
 
@@ -161,23 +185,16 @@ impl Spectrum {
     }
 }
 
-/// Index of the nearest integer wavelength in the dense tables, if in range.
-#[inline]
-fn dense_index(lambda: f32) -> Option<usize> {
-    let i = dense_index4(Vec4::splat(lambda))[0] as usize;
-    (i < N_DENSE).then_some(i)
-}
-
-/// `dense_index` of four wavelengths at once, as u32 that are >= N_DENSE
-/// when out of range (or NaN). Adding 2^23 to a float in [0, 2^22) rounds it
+/// The index of each wavelength's nearest integer nanometre in the dense
+/// tables, or N_DENSE when out of range (or NaN). Adding 2^23 to a float in [0, 2^22) rounds it
 /// to the nearest integer (ties to even) and leaves that integer in the low
 /// mantissa bits; the offset of one more nm makes wavelengths just below
 /// 360 nm (index -1 + 1 = 0 after rounding) map to 360 nm, and anything
-/// below 359.5 nm wrap to a huge index.
+/// below 359.5 nm wrap to a huge index, clamped.
 #[inline]
 pub(crate) fn dense_index4(lambda: Vec4) -> [u32; 4] {
     let r = (lambda - Vec4::splat(LAMBDA_MIN - 1.0)) + Vec4::splat(8_388_608.0);
-    r.to_array().map(|x| x.to_bits().wrapping_sub(0x4b00_0001))
+    r.to_array().map(|x| x.to_bits().wrapping_sub(0x4b00_0001).min(N_DENSE as u32))
 }
 
 /// The piecewise-linear function through `points` (ends held) at `lambda`,
@@ -202,19 +219,33 @@ fn piecewise_linear_at(points: &[(f32, f32)], lambda: f64) -> f64 {
 mod tests {
     use super::*;
 
+    /// Out of range, the index is N_DENSE exactly, a zero slot of every
+    /// table: the lookups mask the index rather than test it.
     #[test]
     fn dense_index_rounds_to_the_nearest_nm_inside_the_range() {
-        assert_eq!(dense_index(360.0), Some(0));
-        assert_eq!(dense_index(359.6), Some(0));
-        assert_eq!(dense_index(359.4), None);
-        assert_eq!(dense_index(360.4), Some(0));
-        assert_eq!(dense_index(360.6), Some(1));
-        assert_eq!(dense_index(538.2), Some(178));
-        assert_eq!(dense_index(830.4), Some(N_DENSE - 1));
-        assert_eq!(dense_index(830.6), None);
-        for l in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -1e30, 1e30, 0.0, -360.0] {
-            assert_eq!(dense_index(l), None, "{l}");
+        let index = |l: f32| dense_index4(Vec4::new(l, 538.2, l, 360.0));
+        assert_eq!(index(360.0), [0, 178, 0, 0]);
+        assert_eq!(index(359.6)[0], 0);
+        assert_eq!(index(360.4)[0], 0);
+        assert_eq!(index(360.6)[0], 1);
+        assert_eq!(index(830.4)[0], N_DENSE as u32 - 1);
+        for l in [359.4, 830.6, 200.0, 900.0, f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -1e30, 1e30, 0.0, -360.0] {
+            assert_eq!(index(l), [N_DENSE as u32, 178, N_DENSE as u32, 0], "{l}");
         }
+    }
+
+    /// A dense spectrum reads its table inside [360, 830] nm and 0 outside,
+    /// where an index masked without the clamp would land inside the table
+    /// (200 nm's wrapped index on slot 353).
+    #[test]
+    fn a_dense_spectrum_is_zero_outside_the_range() {
+        let f = |l: f32| 1.0 + l / 1000.0;
+        let s = Spectrum::from_fn(f);
+        assert_eq!((s.eval(360.0), s.eval(830.4)), (f(360.0), f(830.0)));
+        for l in [359.4, 830.6, 200.0, 900.0, f32::NAN, -1e30, 1e30, 0.0, -360.0] {
+            assert_eq!(s.eval(l), 0.0, "{l}");
+        }
+        assert_eq!((s.max_value(), s.min_value()), (f(830.0), f(360.0)), "the padding is not part of the spectrum");
     }
 
     /// The table's integral over each nanometre a lookup rounds to is the

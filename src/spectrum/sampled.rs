@@ -135,7 +135,7 @@ pub struct SampledWavelengths {
     pub lambda: Vec4,
     pub pdf: Vec4,
     /// Each wavelength's index in the 1 nm tables of dense spectra
-    /// (`dense_index4`; N_DENSE or more outside them), found once per path
+    /// (`dense_index4`; N_DENSE outside them), found once per path
     /// instead of at every `Spectrum::sample`.
     pub(super) dense: [u32; 4],
 }
