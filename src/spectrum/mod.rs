@@ -34,7 +34,7 @@ const DENSE_SLOTS: usize = (N_DENSE + 1).next_power_of_two();
 /// `DENSE_SLOTS`, so that a lookup masks its index into the table rather
 /// than testing it: `dense_index4` clamps an index out of range to
 /// `N_DENSE`, a zero slot. A bounds check and a select per wavelength
-/// cost `bdpt` 1.5 % of its instructions (docs/performance-log.md,
+/// cost `bdpt` 1.3 % of its instructions (docs/performance-log.md,
 /// "Session 45"). Built only by `Spectrum::from_dense`, which zeroes the
 /// padding.
 #[derive(Clone, Debug, PartialEq)]
@@ -186,11 +186,11 @@ impl Spectrum {
 }
 
 /// The index of each wavelength's nearest integer nanometre in the dense
-/// tables, or N_DENSE when out of range (or NaN). Adding 2^23 to a float in [0, 2^22) rounds it
-/// to the nearest integer (ties to even) and leaves that integer in the low
-/// mantissa bits; the offset of one more nm makes wavelengths just below
-/// 360 nm (index -1 + 1 = 0 after rounding) map to 360 nm, and anything
-/// below 359.5 nm wrap to a huge index, clamped.
+/// tables, or N_DENSE when out of range (or NaN). Adding 2^23 to a float
+/// in [0, 2^22) rounds it to the nearest integer (ties to even) and leaves
+/// that integer in the low mantissa bits; the offset of one more nm makes
+/// wavelengths just below 360 nm (index -1 + 1 = 0 after rounding) map to
+/// 360 nm, and 359.5 nm and below wrap to a huge index, clamped.
 #[inline]
 pub(crate) fn dense_index4(lambda: Vec4) -> [u32; 4] {
     let r = (lambda - Vec4::splat(LAMBDA_MIN - 1.0)) + Vec4::splat(8_388_608.0);
@@ -229,14 +229,30 @@ mod tests {
         assert_eq!(index(360.4)[0], 0);
         assert_eq!(index(360.6)[0], 1);
         assert_eq!(index(830.4)[0], N_DENSE as u32 - 1);
-        for l in [359.4, 830.6, 200.0, 900.0, f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -1e30, 1e30, 0.0, -360.0] {
+        assert_eq!(index(830.49994)[0], N_DENSE as u32 - 1);
+        for l in [
+            359.4,
+            359.5,
+            830.5,
+            830.6,
+            1e-40,
+            200.0,
+            900.0,
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            -1e30,
+            1e30,
+            0.0,
+            -360.0,
+        ] {
             assert_eq!(index(l), [N_DENSE as u32, 178, N_DENSE as u32, 0], "{l}");
         }
     }
 
     /// A dense spectrum reads its table inside [360, 830] nm and 0 outside,
     /// where an index masked without the clamp would land inside the table
-    /// (200 nm's wrapped index on slot 353).
+    /// (200 nm's wrapped index on slot 193).
     #[test]
     fn a_dense_spectrum_is_zero_outside_the_range() {
         let f = |l: f32| 1.0 + l / 1000.0;
