@@ -2,7 +2,7 @@
 //! `data/cie1931_2deg_cmf_1nm.csv`, CIE tables as carried in pbrt-v4) and the
 //! conversion of a hero-wavelength estimate to XYZ and linear sRGB (D65).
 
-use super::{SampledSpectrum, SampledWavelengths, Spectrum, N_DENSE};
+use super::{SampledSpectrum, SampledWavelengths, Spectrum, DENSE_SLOTS, N_DENSE};
 use glam::{Mat3, Vec3, Vec4};
 use std::sync::LazyLock;
 
@@ -15,8 +15,9 @@ pub const LAMBDA_MAX: f32 = LAMBDA_MAX_I as f32;
 /// constant spectrum of value v to luminance Y = v.
 pub const CIE_Y_INTEGRAL: f32 = 106.856_895;
 
-/// xbar, ybar, zbar at each integer wavelength, interleaved.
-static CMF: LazyLock<Vec<[f32; 3]>> = LazyLock::new(|| {
+/// xbar, ybar, zbar at each integer wavelength, interleaved, then zeros up
+/// to `DENSE_SLOTS`: looked up by a masked index, as `DenseTable` is.
+static CMF: LazyLock<[[f32; 3]; DENSE_SLOTS]> = LazyLock::new(|| {
     let text = include_str!("data/cie1931_2deg_cmf_1nm.csv");
     let rows: Vec<[f32; 3]> = text
         .lines()
@@ -27,8 +28,15 @@ static CMF: LazyLock<Vec<[f32; 3]>> = LazyLock::new(|| {
         })
         .collect();
     assert_eq!(rows.len(), N_DENSE, "CIE table must cover 360..=830 nm at 1 nm");
-    rows
+    let mut slots = [[0.0; 3]; DENSE_SLOTS];
+    slots[..N_DENSE].copy_from_slice(&rows);
+    slots
 });
+
+/// The colour matching functions over the visible range.
+fn cmf_rows() -> &'static [[f32; 3]] {
+    &CMF[..N_DENSE]
+}
 
 /// The colour matching functions at one path's sampled wavelengths, as the
 /// linear map from its spectral estimate to a colour: row j holds, per lane
@@ -47,7 +55,8 @@ impl SampledCmf {
     #[inline]
     pub fn xyz(lambda: &SampledWavelengths) -> Self {
         let w = SampledSpectrum::ONE.safe_div(SampledSpectrum(lambda.pdf)).0 / (4.0 * CIE_Y_INTEGRAL);
-        let cmf = |i: u32| CMF.get(i as usize).map_or(Vec3::ZERO, |c| Vec3::from_array(*c));
+        let slots = &*CMF;
+        let cmf = |i: u32| Vec3::from_array(slots[i as usize & (DENSE_SLOTS - 1)]);
         let [a, b, c, d] = lambda.dense.map(cmf);
         let row = |k: usize| Vec4::new(a[k], b[k], c[k], d[k]) * w;
         Self { rows: [row(0), row(1), row(2)] }
@@ -96,7 +105,7 @@ pub fn xyz_to_linear_srgb(xyz: Vec3) -> Vec3 {
 /// Exact XYZ of a spectrum (1 nm sums), normalised so a constant v has Y = v.
 pub fn spectrum_to_xyz(s: &Spectrum) -> Vec3 {
     let mut acc = Vec3::ZERO;
-    for (i, c) in CMF.iter().enumerate() {
+    for (i, c) in cmf_rows().iter().enumerate() {
         acc += Vec3::from_array(*c) * s.eval(LAMBDA_MIN + i as f32);
     }
     acc / CIE_Y_INTEGRAL
@@ -112,7 +121,7 @@ pub(super) fn luminance(s: &Spectrum) -> f64 {
 /// the top of the f32 range (an emission of 4e36) would overflow f32, and
 /// an infinite light power leaves a scene with no light sampling at all.
 pub(super) fn luminance_of(f: impl Fn(f32) -> f64) -> f64 {
-    let sum: f64 = CMF.iter().enumerate().map(|(i, c)| c[1] as f64 * f(LAMBDA_MIN + i as f32)).sum();
+    let sum: f64 = cmf_rows().iter().enumerate().map(|(i, c)| c[1] as f64 * f(LAMBDA_MIN + i as f32)).sum();
     sum / CIE_Y_INTEGRAL as f64
 }
 
@@ -122,7 +131,7 @@ mod tests {
 
     #[test]
     fn ybar_integral_matches_the_table() {
-        let s: f32 = CMF.iter().map(|c| c[1]).sum();
+        let s: f32 = cmf_rows().iter().map(|c| c[1]).sum();
         assert!((s - CIE_Y_INTEGRAL).abs() < 1e-3, "{s}");
         assert!((Spectrum::Constant(2.5).luminance() - 2.5).abs() < 1e-4);
     }
