@@ -27,8 +27,9 @@ use std::sync::Arc;
 /// Number of 1 nm samples in [LAMBDA_MIN, LAMBDA_MAX].
 pub const N_DENSE: usize = (cie::LAMBDA_MAX_I - cie::LAMBDA_MIN_I + 1) as usize;
 
-/// Slots of a `DenseTable`: a power of two above `N_DENSE`.
-pub(super) const DENSE_SLOTS: usize = (N_DENSE + 1).next_power_of_two();
+/// Slots of a `DenseTable` and of the CIE table (cie.rs): a power of two
+/// above `N_DENSE`.
+const DENSE_SLOTS: usize = (N_DENSE + 1).next_power_of_two();
 
 /// A dense spectrum's values at 360..=830 nm (`N_DENSE`), then zeros up to
 /// `DENSE_SLOTS`, so that a lookup masks its index into the table rather

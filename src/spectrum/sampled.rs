@@ -134,9 +134,9 @@ pub struct SampledWavelengths {
     /// must follow them.
     pub lambda: Vec4,
     pub pdf: Vec4,
-    /// Each wavelength's index in the 1 nm tables of dense spectra
-    /// (`dense_index4`; N_DENSE outside them), found once per path
-    /// instead of at every `Spectrum::sample`.
+    /// Each wavelength's index in the 1 nm tables of dense spectra and
+    /// of the CIE functions (`dense_index4`; N_DENSE outside them), found
+    /// once per path instead of at every `Spectrum::sample`.
     pub(super) dense: [u32; 4],
 }
 
