@@ -2,7 +2,7 @@
 //! `data/cie1931_2deg_cmf_1nm.csv`, CIE tables as carried in pbrt-v4) and the
 //! conversion of a hero-wavelength estimate to XYZ and linear sRGB (D65).
 
-use super::{SampledSpectrum, SampledWavelengths, Spectrum, DENSE_SLOTS, N_DENSE};
+use super::{padded, slot, SampledSpectrum, SampledWavelengths, Spectrum, DENSE_SLOTS, N_DENSE};
 use glam::{Mat3, Vec3, Vec4};
 use std::sync::LazyLock;
 
@@ -28,9 +28,7 @@ static CMF: LazyLock<[[f32; 3]; DENSE_SLOTS]> = LazyLock::new(|| {
         })
         .collect();
     assert_eq!(rows.len(), N_DENSE, "CIE table must cover 360..=830 nm at 1 nm");
-    let mut slots = [[0.0; 3]; DENSE_SLOTS];
-    slots[..N_DENSE].copy_from_slice(&rows);
-    slots
+    padded(&rows)
 });
 
 /// The colour matching functions over the visible range.
@@ -56,7 +54,7 @@ impl SampledCmf {
     pub fn xyz(lambda: &SampledWavelengths) -> Self {
         let w = SampledSpectrum::ONE.safe_div(SampledSpectrum(lambda.pdf)).0 / (4.0 * CIE_Y_INTEGRAL);
         let slots = &*CMF;
-        let cmf = |i: u32| Vec3::from_array(slots[i as usize & (DENSE_SLOTS - 1)]);
+        let cmf = |i: u32| Vec3::from_array(slots[slot(i)]);
         let [a, b, c, d] = lambda.dense.map(cmf);
         let row = |k: usize| Vec4::new(a[k], b[k], c[k], d[k]) * w;
         Self { rows: [row(0), row(1), row(2)] }

@@ -31,6 +31,22 @@ pub const N_DENSE: usize = (cie::LAMBDA_MAX_I - cie::LAMBDA_MIN_I + 1) as usize;
 /// above `N_DENSE`.
 const DENSE_SLOTS: usize = (N_DENSE + 1).next_power_of_two();
 
+/// `values` over the visible range (`N_DENSE` of them), then the default
+/// (zero) up to `DENSE_SLOTS`: the layout of a `DenseTable` and of the CIE
+/// table.
+fn padded<T: Copy + Default>(values: &[T]) -> [T; DENSE_SLOTS] {
+    let mut slots = [T::default(); DENSE_SLOTS];
+    slots[..N_DENSE].copy_from_slice(values);
+    slots
+}
+
+/// The slot of a `dense_index4` index in a padded table: within the table
+/// for every u32 (no bounds test), a zero slot for N_DENSE.
+#[inline(always)]
+fn slot(i: u32) -> usize {
+    i as usize & (DENSE_SLOTS - 1)
+}
+
 /// A dense spectrum's values at 360..=830 nm (`N_DENSE`), then zeros up to
 /// `DENSE_SLOTS`, so that a lookup masks its index into the table rather
 /// than testing it: `dense_index4` clamps an index out of range to
@@ -50,7 +66,7 @@ impl DenseTable {
     /// The value at a `dense_index4` index (0 out of range).
     #[inline(always)]
     fn at(&self, i: u32) -> f32 {
-        self.0[i as usize & (DENSE_SLOTS - 1)]
+        self.0[slot(i)]
     }
 }
 
@@ -102,9 +118,7 @@ impl Spectrum {
         if table.iter().all(|&v| v == table[0]) {
             Spectrum::Constant(table[0])
         } else {
-            let mut slots = [0.0; DENSE_SLOTS];
-            slots[..N_DENSE].copy_from_slice(&table);
-            Spectrum::Dense(Arc::new(DenseTable(slots)))
+            Spectrum::Dense(Arc::new(DenseTable(padded(&table))))
         }
     }
 
