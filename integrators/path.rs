@@ -79,11 +79,8 @@ impl Integrator for PathTracer {
             Some(s) => scene.camera.generate_ray(pixel.as_vec2() + s.get2d()),
             None => Ray::new(Vec3A::ZERO, Vec3A::ZERO),
         });
-        let hits = scene.intersect8(&rays, (1 << n) - 1);
         let mut l = [SampledSpectrum::ZERO; LANES];
-        for (i, (ray, si)) in rays.into_iter().zip(hits).take(n).enumerate() {
-            l[i] = self.trace(scene, ray, si, &mut samplers[i], &mut lambdas[i]);
-        }
+        scene.intersect8(&rays, n, |i, si| l[i] = self.trace(scene, rays[i], si, &mut samplers[i], &mut lambdas[i]));
         Some(l)
     }
 

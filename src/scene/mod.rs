@@ -554,13 +554,19 @@ impl Scene {
         Some(self.interaction(ray, &hit))
     }
 
-    /// `intersect` for the rays in the `active` lanes of a packet, traced
-    /// together (`Accel::intersect8`): for rays that start close together
-    /// towards close directions, such as a pixel's camera rays.
-    pub fn intersect8(&self, rays: &[Ray; LANES], active: u32) -> [Option<SurfaceInteraction>; LANES] {
-        count_rays(active.count_ones());
-        let hits = self.accel.intersect8(rays, [f32::INFINITY; LANES], active);
-        std::array::from_fn(|l| hits[l].as_ref().map(|hit| self.interaction(&rays[l], hit)))
+    /// `intersect` for the first `n` rays of a packet, traced together
+    /// (`Accel::intersect8`): for rays that start close together towards
+    /// close directions, such as a pixel's camera rays. Calls `each` with
+    /// every lane's index and hit in lane order, so that no array of
+    /// interactions (~1 KiB) is built and copied.
+    #[inline(always)]
+    pub fn intersect8(&self, rays: &[Ray; LANES], n: usize, mut each: impl FnMut(usize, Option<SurfaceInteraction>)) {
+        let n = n.min(LANES);
+        count_rays(n as u32);
+        let hits = self.accel.intersect8(rays, [f32::INFINITY; LANES], (1 << n) - 1);
+        for (l, (ray, hit)) in rays.iter().zip(&hits).take(n).enumerate() {
+            each(l, hit.as_ref().map(|hit| self.interaction(ray, hit)));
+        }
     }
 
     /// The surface interaction of a ray's hit.
