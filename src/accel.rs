@@ -661,9 +661,17 @@ impl PreparedRay {
     /// Whether the triangle in `lane` of `block`, which the ray meets
     /// within the rounding error of its t from the origin, is certainly
     /// ahead of it (`lanes::near_t_in_f64`), with `t` set to its distance.
+    ///
+    /// Rare (a ray meets few triangles that near its origin), so the ray is
+    /// read through `black_box`: otherwise LLVM hoists its conversion to
+    /// f64 out of the traversal loop to every ray's start, ~12 instructions
+    /// a ray (`bdpt` 0.4 %, `path` 0.5 %; docs/performance-log.md, "Session
+    /// 46"). An out-of-line call instead cost more, spilling the loop's
+    /// vector registers. The hint changes no value.
     #[inline(always)]
     fn near_hit(&self, block: &TriangleBlock, lane: usize, t: &mut f32) -> bool {
-        lanes::near_t_in_f64(self.o, self.d, &block.vertices(lane)).map(|near| *t = near).is_some()
+        let (o, d) = std::hint::black_box((self.o, self.d));
+        lanes::near_t_in_f64(o, d, &block.vertices(lane)).map(|near| *t = near).is_some()
     }
 }
 
