@@ -45,6 +45,7 @@ use obvhs::{
     cwbvh::{node::CwBvhNode, CwBvh},
 };
 use rayon::prelude::*;
+use std::mem::MaybeUninit;
 use std::ops::ControlFlow;
 
 /// A ray-triangle hit: distance, the triangle's index in the input order, the
@@ -419,10 +420,17 @@ fn blocks(base: u32, mask: u32) -> impl Iterator<Item = (u32, u32)> {
 /// group per tree level, and wide BVHs are shallow, so 32 entries in place
 /// suffice for all but pathological trees, which spill to the heap instead
 /// of losing nodes. (Not a `SmallVec`: its checks of where the entries
-/// live cost ~40 instructions per ray, 2-3 % of a Cornell box render;
-/// zeroing these 256 bytes costs a few stores.)
+/// live cost ~40 instructions per ray, 2-3 % of a Cornell box render.)
+/// The entries in place start uninitialised: zeroing their 256 bytes took
+/// 11 instructions a ray, 0.7 % of `path`'s and 0.85 % of `bdpt`'s
+/// (docs/performance-log.md, "Session 46").
+///
+/// Invariant: `inline[i]` is initialised for every i < min(len, INLINE).
+/// `new` starts at len 0; `push` writes `inline[len]` before len grows past
+/// it (or spills, at len >= INLINE); `pop` shrinks len, and so the set;
+/// nothing else changes `len` or `inline`.
 struct GroupStack {
-    inline: [(u32, u32); GroupStack::INLINE],
+    inline: [MaybeUninit<(u32, u32)>; GroupStack::INLINE],
     len: usize,
     spill: Vec<(u32, u32)>,
 }
@@ -432,13 +440,13 @@ impl GroupStack {
 
     #[inline(always)]
     fn new() -> Self {
-        Self { inline: [(0, 0); Self::INLINE], len: 0, spill: Vec::new() }
+        Self { inline: [const { MaybeUninit::uninit() }; Self::INLINE], len: 0, spill: Vec::new() }
     }
 
     #[inline(always)]
     fn push(&mut self, group: (u32, u32)) {
         match self.inline.get_mut(self.len) {
-            Some(slot) => *slot = group,
+            Some(slot) => _ = slot.write(group),
             None => self.spill.push(group),
         }
         self.len += 1;
@@ -448,7 +456,10 @@ impl GroupStack {
     fn pop(&mut self) -> Option<(u32, u32)> {
         self.len = self.len.checked_sub(1)?;
         match self.inline.get(self.len) {
-            Some(&group) => Some(group),
+            // SAFETY: `len` has just dropped below its value before this
+            // call, so `inline[len]` (< INLINE here) is below the old
+            // min(len, INLINE) and initialised by the struct's invariant.
+            Some(group) => Some(unsafe { group.assume_init() }),
             None => self.spill.pop(),
         }
     }
