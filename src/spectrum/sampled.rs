@@ -150,6 +150,8 @@ impl SampledWavelengths {
         let x = u * VisibleTable::N as f32;
         let first = (x as usize).min(VisibleTable::N - 1);
         let f = Vec4::splat(x - first as f32);
+        // (N is a power of two: the modulo is a mask, and fixed-size
+        // tables let the compiler drop the index checks.)
         let segment = [0, 1, 2, 3].map(|i| (first + i * VisibleTable::N / 4) % VisibleTable::N);
         let at = |v: &[f32], d: usize| Vec4::from_array(segment.map(|k| v[k + d]));
         let (lo, hi) = (at(&t.lambda, 0), at(&t.lambda, 1));
@@ -192,8 +194,8 @@ impl SampledWavelengths {
 /// whose polynomial is one chain of dependent multiplies, took ~4 % of
 /// `light`'s time (docs/performance-log.md, "Session 18").
 struct VisibleTable {
-    lambda: Vec<f32>,
-    pdf: Vec<f32>,
+    lambda: [f32; VisibleTable::N + 1],
+    pdf: [f32; VisibleTable::N],
 }
 
 impl VisibleTable {
@@ -205,14 +207,12 @@ impl VisibleTable {
         // pbrt-v4 `SampleVisibleWavelengths`: l = 538 - atanh(0.8569106 -
         // 1.827502 u) / 0.0072.
         let inverse_cdf = |u: f64| 538.0 - (0.856_910_6 - 1.827_502 * u).atanh() / 0.0072;
-        let lambda: Vec<f32> = (0..=Self::N)
-            .map(|k| match k {
-                0 => super::LAMBDA_MIN,
-                k if k == Self::N => super::LAMBDA_MAX,
-                k => inverse_cdf(k as f64 / Self::N as f64) as f32,
-            })
-            .collect();
-        let pdf = lambda.windows(2).map(|w| (1.0 / (Self::N as f64 * (w[1] as f64 - w[0] as f64))) as f32).collect();
+        let lambda: [f32; Self::N + 1] = std::array::from_fn(|k| match k {
+            0 => super::LAMBDA_MIN,
+            k if k == Self::N => super::LAMBDA_MAX,
+            k => inverse_cdf(k as f64 / Self::N as f64) as f32,
+        });
+        let pdf = std::array::from_fn(|k| (1.0 / (Self::N as f64 * (lambda[k + 1] as f64 - lambda[k] as f64))) as f32);
         Self { lambda, pdf }
     }
 }
