@@ -104,6 +104,9 @@ pub struct Vertex {
     /// light, or a surface with a non-specular lobe (found once, when the
     /// vertex is made; BDPT asks at every connection).
     pub connectible: bool,
+    /// pbrt's IsOnSurface, found once when the vertex is made: `si.ng` is
+    /// not zero (`is_on_surface`).
+    pub on_surface: bool,
     pub pdf_fwd: f32,
     pub pdf_rev: f32,
     /// Converts a density of leaving this vertex towards the previous vertex
@@ -161,8 +164,9 @@ pub struct PathScratch {
 
 impl Vertex {
     fn new(kind: VertexKind, si: SurfaceInteraction, beta: SampledSpectrum, pdf_fwd: f32) -> Self {
-        let connectible = kind != VertexKind::Surface;
-        Self { kind, si, beta, delta: false, connectible, pdf_fwd, pdf_rev: 0.0, g_rev: 0.0, d_vcm: 0.0, d_vc: 0.0 }
+        let (connectible, on_surface) = (kind != VertexKind::Surface, si.ng != Vec3A::ZERO);
+        let (pdf_rev, g_rev, d_vcm, d_vc) = (0.0, 0.0, 0.0, 0.0);
+        Self { kind, si, beta, delta: false, connectible, on_surface, pdf_fwd, pdf_rev, g_rev, d_vcm, d_vc }
     }
 
     /// A scattering point of a walk, with the material found there.
@@ -207,7 +211,7 @@ impl Vertex {
     /// pbrt's IsOnSurface: the vertex has a normal that cosines refer to.
     #[inline]
     pub fn is_on_surface(&self) -> bool {
-        self.si.ng != Vec3A::ZERO
+        self.on_surface
     }
 
     #[inline]
