@@ -333,27 +333,40 @@ mod tests {
         ChiSquared::new((G * G - 1) as f64).unwrap().sf(chi2)
     }
 
-    /// A 2D point's coordinates (two parts of one 64-bit step), successive
-    /// 1D draws, and the first draws of neighbouring samples' streams are
-    /// each uniform on the square (chi-square, 2^18 points per check, each
-    /// at alpha 1e-4). Negative control: coordinates from overlapping bits
-    /// of one step (63-40 and 61-38) are rejected.
+    /// A 2D point takes its coordinates from disjoint bits of one 64-bit
+    /// step (63-40 and 31-8, checked exactly against the generator), and
+    /// the draws are uniform on the square, at the 32 x 32 grid of their
+    /// top five bits and of their bottom five: 2D points, successive 1D
+    /// draws, and the first draws of neighbouring samples' streams (pairs
+    /// 2i, 2i + 1, so that no draw is in two points). Chi-square on 2^18
+    /// points per check, each at alpha 1e-4. Negative control: coordinates
+    /// from overlapping bits of one step (63-40 and 61-38) are rejected.
     #[test]
     fn sampler_points_are_uniform_and_independent() {
         const N: u64 = 1 << 18;
         let mut s = Sampler::new(7, 11, 13);
-        let checks = [
-            ("get2d", uniform_grid_p((0..N).map(|_| s.get2d()))),
-            ("get1d pairs", uniform_grid_p((0..N).map(|_| Vec2::new(s.get1d(), s.get1d())))),
+        for _ in 0..1000 {
+            let bits = s.rng.clone().next_u64();
+            let expected = Vec2::new((bits >> 40) as f32, ((bits as u32) >> 8) as f32) * UNIT_24;
+            assert_eq!(s.get2d(), expected, "a 2D point from other bits than 63-40 and 31-8 of one step");
+        }
+        // The bottom five of a draw's 24 bits, as a number in [0, 1).
+        let low = |p: Vec2| (p * (1u32 << 19) as f32).fract();
+        let mut draws: Vec<(&str, Vec<Vec2>)> = vec![
+            ("get2d", (0..N).map(|_| s.get2d()).collect()),
+            ("get1d pairs", (0..N).map(|_| Vec2::new(s.get1d(), s.get1d())).collect()),
             (
                 "neighbouring streams",
-                uniform_grid_p(
-                    (0..N).map(|i| Vec2::new(Sampler::new(7, 0, i).get1d(), Sampler::new(7, 0, i + 1).get1d())),
-                ),
+                (0..N)
+                    .map(|i| Vec2::new(Sampler::new(7, 0, 2 * i).get1d(), Sampler::new(7, 0, 2 * i + 1).get1d()))
+                    .collect(),
             ),
         ];
-        for (what, p) in checks {
-            assert!(p > 1e-4, "{what}: chi-square p = {p:e}");
+        draws.extend(draws.clone().into_iter().map(|(what, points)| (what, points.into_iter().map(low).collect())));
+        for (k, (what, points)) in draws.into_iter().enumerate() {
+            let p = uniform_grid_p(points.into_iter());
+            let bits = if k < 3 { "top" } else { "bottom" };
+            assert!(p > 1e-4, "{what}, {bits} bits: chi-square p = {p:e}");
         }
         let overlapping =
             |bits: u64| Vec2::new((bits >> 40) as f32, ((bits >> 38) as u32 & 0xff_ffff) as f32) * UNIT_24;
