@@ -1192,7 +1192,10 @@ fn rough_f_matches_the_closed_forms() {
             let b = dielectric(eta, ax, ay);
             let err = worst_f_error(&b, &dielectric_f(&g(false, 1.0), eta));
             eprintln!("dielectric eta {eta} a=({ax},{ay}): worst relative error {err:.2e}");
-            assert!(err < 2e-3, "dielectric eta {eta} a=({ax},{ay}): {err}");
+            // (1e-3: with unit directions in the reference, the worst of
+            // seed offsets 0-40 is 1.7e-4; it was 2e-3 before, when the
+            // reference itself was up to 2.8e-3 off.)
+            assert!(err < 1e-3, "dielectric eta {eta} a=({ax},{ay}): {err}");
             let err = worst_f_error(&b, &dielectric_f(&g(true, 1.0), eta));
             eprintln!("  control separable G: {err:.2e}");
             assert!(err > 1e-2, "dielectric eta {eta} a=({ax},{ay}): the separable-G control passed ({err})");
