@@ -147,7 +147,7 @@ impl PathTracer {
                 eta_scale *= bs.eta * bs.eta;
             }
             prev = PrevVertex { p: si.p, pdf_bsdf: bs.pdf, specular: bs.is_specular() };
-            if beta.is_black() || !russian_roulette(&mut beta, eta_scale, depth, sampler.get1d()) {
+            if beta.is_black() || !russian_roulette(&mut beta, eta_scale, depth, || sampler.get1d()) {
                 break;
             }
             ray = si.spawn_ray(si.frame.to_world(bs.wi));

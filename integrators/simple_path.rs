@@ -66,7 +66,7 @@ impl Integrator for SimplePath {
             if bs.flags.is_transmission() {
                 eta_scale *= bs.eta * bs.eta;
             }
-            if beta.is_black() || !russian_roulette(&mut beta, eta_scale, depth, sampler.get1d()) {
+            if beta.is_black() || !russian_roulette(&mut beta, eta_scale, depth, || sampler.get1d()) {
                 break;
             }
             ray = si.spawn_ray(si.frame.to_world(bs.wi));

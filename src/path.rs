@@ -513,7 +513,7 @@ fn random_walk<const MIS: bool>(
         path[n - 1].delta = bs.is_specular();
         // Roulette on the throughput relative to the walk's start.
         let mut rel = beta / beta0;
-        if beta.is_black() || !russian_roulette(&mut rel, eta_scale, depth, sampler.get1d()) {
+        if beta.is_black() || !russian_roulette(&mut rel, eta_scale, depth, || sampler.get1d()) {
             return;
         }
         beta = rel * beta0;

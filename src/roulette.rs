@@ -13,8 +13,12 @@ use crate::spectrum::SampledSpectrum;
 /// of its chance; it is at most 1 - 2^-24, or a throughput at or below
 /// 2^-25, for which 1 - m rounds to 1, would never survive (an audit,
 /// session 36).
+///
+/// The uniform number is drawn by `u` only when the coin is tossed: not
+/// before `MIN_DEPTH` nor while the throughput is at least 1 (a step of the
+/// generator saved per early bounce, docs/performance-log.md, "Session 47").
 #[inline]
-pub fn russian_roulette(beta: &mut SampledSpectrum, eta_scale: f32, depth: u32, u: f32) -> bool {
+pub fn russian_roulette(beta: &mut SampledSpectrum, eta_scale: f32, depth: u32, u: impl FnOnce() -> f32) -> bool {
     const MIN_DEPTH: u32 = 3;
     if depth < MIN_DEPTH {
         return true;
@@ -24,7 +28,7 @@ pub fn russian_roulette(beta: &mut SampledSpectrum, eta_scale: f32, depth: u32, 
         return true;
     }
     let q = (1.0 - m).clamp(0.0, 1.0 - f32::EPSILON / 2.0);
-    if u < q {
+    if u() < q {
         return false;
     }
     *beta /= 1.0 - q;
@@ -46,7 +50,7 @@ mod tests {
             let mut sum = 0f64;
             for k in 0..1u32 << 24 {
                 let mut beta = SampledSpectrum::splat(m);
-                if russian_roulette(&mut beta, 1.0, 3, k as f32 / (1u32 << 24) as f32) {
+                if russian_roulette(&mut beta, 1.0, 3, || k as f32 / (1u32 << 24) as f32) {
                     sum += beta[0] as f64;
                 }
             }
