@@ -37,7 +37,7 @@ mod packet;
 
 pub use packet::LANES;
 
-use crate::geometry::{Ray, NO_TRIANGLE};
+use crate::geometry::{edge_margin, Ray, NO_TRIANGLE};
 use crate::wide_bvh::{self, PrimRef};
 use glam::{DVec3, Vec3A, Vec4};
 use obvhs::{
@@ -61,6 +61,8 @@ pub struct TriangleHit {
     pub v: [Vec3A; 3],
     /// The triangle's BVH slot (for `Ray::skip` of rays leaving it).
     pub slot: u32,
+    /// The triangle's `geometry::edge_margin`, computed when it was built.
+    pub margin: f32,
 }
 
 pub struct Accel {
@@ -157,6 +159,12 @@ impl Accel {
         self.blocks[slot as usize / 4].vertices(slot as usize % 4)
     }
 
+    /// The `geometry::edge_margin` of the triangle in BVH slot `slot`.
+    #[inline]
+    pub fn edge_margin(&self, slot: u32) -> f32 {
+        self.blocks[slot as usize / 4].margin[slot as usize % 4]
+    }
+
     /// Input index -> BVH slot (what `Ray::skip` and `TriangleHit::slot`
     /// hold), `NO_TRIANGLE` for a degenerate triangle. Made on demand, 4
     /// bytes per triangle, for exporters and tests: rendering needs no
@@ -232,6 +240,7 @@ impl Accel {
             b2,
             v: self.vertices(slot),
             slot,
+            margin: self.edge_margin(slot),
         })
     }
 
@@ -500,24 +509,28 @@ pub fn intersect_triangle(ray: &Ray, tri: &[Vec3A; 3], t_max: f32) -> Option<(f3
 /// (`PreparedRay::intersect_block`): whether a block holds a candidate is
 /// one branch, where one per triangle would follow the geometry, which the
 /// CPU cannot predict (the few candidates are then taken lane by lane).
-/// 144 bytes, 36 per triangle; the lanes past the last triangle are zero,
-/// computed on but masked out by every traversal group.
+/// With each triangle's `edge_margin`, which a hit hands on
+/// (`Scene::interaction`), 160 bytes, 40 per triangle; the lanes past the
+/// last triangle are zero, computed on but masked out by every traversal
+/// group.
 #[derive(Clone, Copy, Debug)]
 #[repr(align(16))]
 struct TriangleBlock {
     c: [[f32; 4]; 9],
+    margin: [f32; 4],
 }
 
 impl TriangleBlock {
     /// Up to four triangles, in lane order.
     fn new(tris: impl Iterator<Item = [Vec3A; 3]>) -> Self {
-        let mut c = [[0.0f32; 4]; 9];
+        let (mut c, mut margin) = ([[0.0f32; 4]; 9], [0.0f32; 4]);
         for (lane, t) in tris.enumerate() {
             for (i, row) in c.iter_mut().enumerate() {
                 row[lane] = t[i % 3][i / 3];
             }
+            margin[lane] = edge_margin(&t);
         }
-        Self { c }
+        Self { c, margin }
     }
 
     /// Coordinate k of vertex j of the four triangles.

@@ -81,6 +81,65 @@ pub fn barycentric_error(v: &[Vec3A; 3], b0: f32, b1: f32, b2: f32) -> Vec3A {
     ((v[0] * b0).abs() + (v[1] * b1).abs() + (v[2] * b2).abs()) * gamma(7)
 }
 
+/// How far from 0 (at least) `triangle_point` keeps a barycentric of the
+/// triangle `v`: `EDGE_MARGIN` (16) bounds of the rounding error of a point
+/// on it over its least altitude h_min = 2 area / longest edge. The bound
+/// is E = gamma(7) |(max_j |v_j.x|, max_j |v_j.y|, max_j |v_j.z|)|, which
+/// `barycentric_error` stays within for any barycentrics >= 0 summing to 1.
+/// A point with b_i >= margin / (1 + 3 margin) (what `triangle_point`
+/// leaves) lies at least 15.2 E from every edge's line, so where a
+/// neighbour's plane passes through an edge at an angle phi to this
+/// triangle's plane (a cube's face beside another: 90 degrees), the true
+/// point is at least 15.2 E sin(phi) from that plane and the rounded one
+/// at least 15.2 E sin(phi) - E, on its own triangle's side. A spawned ray
+/// moves it further by at most 1.5 E: the offset along the own normal, at
+/// most |n| |p_error| <= E, and one ulp a coordinate with the rounding of
+/// the sum, under 0.5 E. So for phi above 10 degrees its origin stays on
+/// the own side of the neighbour's plane (docs/performance-log.md,
+/// "Session 47"). At most `MAX_EDGE_MARGIN` (a sliver, or a triangle tiny
+/// against its distance from the origin, which f32 cannot resolve anyway).
+/// In f64, from the vertices as stored.
+pub fn edge_margin(v: &[Vec3A; 3]) -> f32 {
+    let [a, b, c] = v.map(|x| x.as_dvec3());
+    let twice_area = (b - a).cross(c - a).length();
+    let longest = (b - a).length().max((c - b).length()).max((a - c).length());
+    let e = gamma(7) as f64 * v[0].abs().max(v[1].abs()).max(v[2].abs()).as_dvec3().length();
+    // A degenerate triangle (never hit nor sampled) gives NaN or infinity,
+    // which `min` turns into the cap.
+    (EDGE_MARGIN * e * longest / twice_area).min(MAX_EDGE_MARGIN) as f32
+}
+
+const EDGE_MARGIN: f64 = 16.0;
+const MAX_EDGE_MARGIN: f64 = 1.0 / 64.0;
+
+/// The point with barycentrics `b` (summing to 1) on the triangle `v`, with
+/// its rounding error bound (`barycentric_error`) and the barycentrics it
+/// was made from: `b` itself unless one is below `margin`
+/// (`edge_margin(v)`), when each is raised to at least `margin` and the
+/// three renormalised (each then at least margin / (1 + 3 margin)). Within
+/// rounding of an edge, a point could land exactly in a neighbour's plane,
+/// or beyond it: a ray spawned there, offset along its own normal only,
+/// left through the neighbour at t = 0, and light inside a closed cube got
+/// out (a seed sweep, session 47; `a_closed_shell_keeps_its_light_in`).
+/// The move is at most margin times the triangle's size, and only for a
+/// fraction of about 3 margin of the points.
+#[inline(always)]
+pub fn triangle_point(v: &[Vec3A; 3], b: [f32; 3], margin: f32) -> (Vec3A, Vec3A, [f32; 3]) {
+    // One vector compare (`f32::min` orders NaNs, which costs more); a NaN
+    // barycentric is left as it is.
+    let near_edge = Vec3A::from(b).cmplt(Vec3A::splat(margin)).any();
+    let b = if near_edge { off_edges(b, margin) } else { b };
+    (v[0] * b[0] + v[1] * b[1] + v[2] * b[2], barycentric_error(v, b[0], b[1], b[2]), b)
+}
+
+#[cold]
+#[inline(never)]
+fn off_edges(b: [f32; 3], margin: f32) -> [f32; 3] {
+    let c = b.map(|x| x.max(margin));
+    let sum = c[0] + c[1] + c[2];
+    c.map(|x| x / sum)
+}
+
 /// A point that rays leave from or arrive at: position, a bound on its
 /// rounding error per axis, and the geometric normal (zero off surfaces: the
 /// pinhole, a point light, the environment's far point).
@@ -332,6 +391,39 @@ mod tests {
                     assert_eq!(got.to_array().map(f32::to_bits), want, "x = {x:e}, o = {o:e}");
                 }
             }
+        }
+    }
+
+    /// Points at least the margin from every edge are made exactly as
+    /// before (b unchanged); the others are moved to at least
+    /// margin / (1 + 3 margin), within one rounding, with barycentrics
+    /// that still sum to 1. The margin of a unit right triangle at the
+    /// origin is 16 E / h_min, E = gamma(7) sqrt(2), h_min = 1 / sqrt(2).
+    #[test]
+    fn triangle_points_keep_the_margin_from_every_edge() {
+        let v = [Vec3A::ZERO, Vec3A::X, Vec3A::Y];
+        let margin = edge_margin(&v);
+        let want = 16.0 * gamma(7) as f64 * 2f64.sqrt() * 2f64.sqrt();
+        assert!((margin as f64 / want - 1.0).abs() < 1e-6, "{margin} vs {want}");
+        let floor = margin / (1.0 + 3.0 * margin) * (1.0 - f32::EPSILON);
+        for b in [
+            [0.2, 0.3, 0.5],
+            [margin, margin, 1.0 - 2.0 * margin],
+            [0.0, 0.5, 0.5],
+            [-1e-9, 1e-9, 1.0],
+            [1.0, 0.0, 0.0],
+        ] {
+            let (p, e, got) = triangle_point(&v, b, margin);
+            if b.iter().all(|&x| x >= margin) {
+                assert_eq!(got, b);
+            } else {
+                assert!(got.iter().all(|&x| x >= floor), "{b:?} -> {got:?}");
+                assert!((got.iter().sum::<f32>() - 1.0).abs() < 1e-6, "{got:?}");
+            }
+            assert_eq!(
+                (p, e),
+                (v[0] * got[0] + v[1] * got[1] + v[2] * got[2], barycentric_error(&v, got[0], got[1], got[2]))
+            );
         }
     }
 

@@ -8,7 +8,7 @@
 //!
 //! Lights are an enum matched in the hot loop; one light per emissive triangle.
 
-use crate::geometry::{barycentric_error, Frame, Ray, Shadow, SurfacePoint, NO_TRIANGLE};
+use crate::geometry::{triangle_point, Frame, Ray, Shadow, SurfacePoint, NO_TRIANGLE};
 use crate::sampling::{cosine_hemisphere, uniform_sphere, uniform_triangle, UNIFORM_SPHERE_PDF};
 use crate::spectrum::{SampledSpectrum, SampledWavelengths, Spectrum};
 use glam::{Vec2, Vec3A};
@@ -34,9 +34,20 @@ pub struct AreaLight {
     pub prim: u32,
     /// Its BVH slot (set once the BVH is built).
     pub slot: u32,
+    /// Its `geometry::edge_margin`.
+    pub margin: f32,
 }
 
 impl AreaLight {
+    /// A uniform point on the triangle (Heitz 2019), kept off its edges
+    /// by its margin (`triangle_point`), with its rounding error bound.
+    #[inline(always)]
+    fn sample_point(&self, u: Vec2) -> (Vec3A, Vec3A) {
+        let (b0, b1) = uniform_triangle(u);
+        let (p, p_error, _) = triangle_point(&self.v, [b0, b1, 1.0 - b0 - b1], self.margin);
+        (p, p_error)
+    }
+
     /// Whether a point of the light with normal `n` emits in direction `w`:
     /// from its front side, or from both.
     #[inline]
@@ -174,9 +185,7 @@ impl Light {
     pub fn sample_li(&self, p_ref: Vec3A, u: Vec2, lambda: &SampledWavelengths) -> Option<LightLiSample> {
         match self {
             Light::Area(a) => {
-                let (b0, b1) = uniform_triangle(u);
-                let p = a.v[0] * b0 + a.v[1] * b1 + a.v[2] * (1.0 - b0 - b1);
-                let p_error = barycentric_error(&a.v, b0, b1, 1.0 - b0 - b1);
+                let (p, p_error) = a.sample_point(u);
                 let to = p - p_ref;
                 let dist2 = to.length_squared();
                 if dist2 == 0.0 {
@@ -247,9 +256,7 @@ impl Light {
     pub fn sample_le(&self, u1: Vec2, u2: Vec2, lambda: &SampledWavelengths) -> Option<LightLeSample> {
         match self {
             Light::Area(a) => {
-                let (b0, b1) = uniform_triangle(u1);
-                let p = a.v[0] * b0 + a.v[1] * b1 + a.v[2] * (1.0 - b0 - b1);
-                let p_error = barycentric_error(&a.v, b0, b1, 1.0 - b0 - b1);
+                let (p, p_error) = a.sample_point(u1);
                 let (u, flip) = if a.two_sided {
                     // Pick a side with the first coordinate, then remap it.
                     if u2.x < 0.5 {

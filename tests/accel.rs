@@ -5,7 +5,7 @@
 
 use glam::{Affine3A, Vec3A};
 use prism::accel::{intersect_triangle, is_degenerate, Accel, TriangleHit};
-use prism::geometry::{barycentric_error, offset_ray_origin, Ray, NO_TRIANGLE};
+use prism::geometry::{barycentric_error, edge_margin, offset_ray_origin, Ray, NO_TRIANGLE};
 use prism::shapes::Mesh;
 use rand_xoshiro::rand_core::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
@@ -73,7 +73,8 @@ fn brute_without(tris: &[[Vec3A; 3]], ray: &Ray, t_max: f32, skip: impl Fn(u32) 
     for (i, tri) in tris.iter().enumerate().filter(|&(i, _)| !skip(i as u32)) {
         let tm = best.map_or(t_max, |b| b.t);
         if let Some((t, b1, b2)) = intersect_triangle(ray, tri, tm) {
-            best = Some(TriangleHit { t, prim: i as u32, b1, b2, v: *tri, slot: NO_TRIANGLE });
+            best =
+                Some(TriangleHit { t, prim: i as u32, b1, b2, v: *tri, slot: NO_TRIANGLE, margin: edge_margin(tri) });
         }
     }
     best

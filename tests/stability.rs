@@ -35,6 +35,7 @@ mod scenes;
 
 use glam::{DMat3, DVec3, Vec3A};
 use prism::film::Film;
+use prism::geometry::{triangle_point, Ray, SurfacePoint};
 use prism::integrators::{Integrator, INTEGRATORS};
 use prism::render::{render, RenderOptions};
 use prism::sampling::MisHeuristic;
@@ -976,22 +977,20 @@ fn a_far_scene_renders_as_at_the_origin() {
 /// emitting shell's own faces lit the room under path and bdpt (a review).
 /// The control: this test without the `ends_resolved` test of
 /// `Scene::visible` (`Shadow::segment`), which every connection's shadow
-/// segment passes. Not covered, traced in session 44: a surface point
-/// that rounding puts exactly on its triangle's edge, where a cube's edge
-/// lies exactly in the neighbouring face's plane. A light sample there
-/// (u.x = 2^-24: b0 = 2^-25 rounds away) meets the neighbour at t = 1,
-/// outside the segment's open range; a hit there spawns its ray, offset
-/// along its own normal, still in the neighbour's plane, which it leaves
-/// through at t = 0, no hit. So an emitting cube wound inward lit a pixel
-/// in about one image of 20 at 64 spp under each estimator (path 14 of
-/// 290 seeds, light 12 of 600, bdpt 14 of 100; about 1e-7 of the light),
-/// and a light inside a cube could in principle leak the same way; the
-/// icosphere's edges, not axis-aligned, rarely round into a plane.
-/// Keeping every point's barycentrics a few error bounds off its edges
-/// stops it and cost 2.2-4.4 % of instructions (the diff is in
-/// performance-log.md, "Session 44"), so it was not adopted. Shading normals
-/// let light through by design (docs/scene-format.md), so the shells are
-/// flat.
+/// segment passes. A surface point that rounding puts exactly on its
+/// triangle's edge, where a cube's edge lies exactly in the neighbouring
+/// face's plane, leaked too: a light sample there (u.x = 2^-24: b0 =
+/// 2^-25 rounds away) met the neighbour at t = 1, outside the segment's
+/// open range, and a hit there spawned its ray, offset along its own
+/// normal, still in the neighbour's plane, which it left through at t = 0.
+/// An emitting cube wound inward lit a pixel in about one image of 20 at
+/// 64 spp under each estimator (session 44), and the seed sweep at offset
+/// 63 (session 47) found bdpt's light paths leaving the cube with the
+/// point light (two pixels, up to 3.5e-3). Since session 47 every point
+/// on a triangle is kept a few error bounds off its edges
+/// (`geometry::triangle_point`; its own test, with a control, is
+/// `a_point_by_a_cubes_edge_stays_inside_it`). Shading normals let light
+/// through by design (docs/scene-format.md), so the shells are flat.
 #[test]
 fn a_closed_shell_keeps_its_light_in() {
     let point = r#""lights": [{"type": "point", "position": [0.5, 0.5, 0.5], "intensity": 1}]"#;
@@ -1020,6 +1019,56 @@ fn a_closed_shell_keeps_its_light_in() {
             assert_eq!(lit, 0, "{name}, shell {shell}: {lit} pixels lit (max {max:e})");
         }
     }
+}
+
+/// A point that rounding would put on its triangle's edge is kept off it
+/// (`geometry::triangle_point`). Rays from the centre of a cube to points
+/// of its four edges along z (in a room that holds the origin, so that
+/// render space is the file's) hit one of the two faces by the edge; a ray
+/// spawned there into the cube across its own face and out through the
+/// other face must meet that face just ahead, not leave the cube. The
+/// control: the same hits, their points made without the margin
+/// (`triangle_point(.., 0)`), let rays out, as they did light inside a
+/// closed cube (the seed sweep at offset 63, session 47).
+#[test]
+fn a_point_by_a_cubes_edge_stays_inside_it() {
+    let text = r#"{
+  "camera": {"position": [0.5, 0.5, -1], "look_at": [0.5, 0.5, 0.5], "fov": 30, "width": 8, "height": 8},
+  "materials": {"white": {"type": "diffuse", "reflectance": 0.7}},
+  "objects": [
+    {"shape": {"type": "cuboid", "min": [0, 0, 0], "max": [1, 1, 1], "inward": true}, "material": "white"},
+    {"shape": {"type": "cuboid", "min": [0.4, 0.4, 0.4], "max": [0.6, 0.6, 0.6]}, "material": "white"}
+  ]
+}"#;
+    let scene = parse_scene(text, "cube", Path::new(".")).unwrap_or_else(|e| panic!("{e}")).build();
+    let centre = Vec3A::splat(0.5);
+    let out = |r: &Ray| scene.intersect(r).is_none_or(|h| h.t > 1e-3);
+    let (mut escaped, mut escaped_without_margin, mut rays) = (0, 0, 0);
+    for k in 0..2000 {
+        let z = 0.41 + 0.18 * k as f32 / 2000.0;
+        for (x, y) in [(0.4f32, 0.4f32), (0.6, 0.4), (0.4, 0.6), (0.6, 0.6)] {
+            let ray = Ray::new(centre, Vec3A::new(x, y, z) - centre);
+            let (Some(si), Some(hit)) = (scene.intersect(&ray), scene.accel.intersect(&ray, f32::INFINITY)) else {
+                panic!("the ray to ({x}, {y}, {z}) misses the cube");
+            };
+            // Into the cube across the face hit, out through the other.
+            let (inward, outward) =
+                (Vec3A::new(0.5 - x, 0.5 - y, 0.0).signum(), Vec3A::new(x - 0.5, y - 0.5, 0.0).signum());
+            let w = if si.ng.x.abs() > 0.5 {
+                Vec3A::new(0.8 * inward.x, 0.5 * outward.y, 0.3)
+            } else {
+                Vec3A::new(0.5 * outward.x, 0.8 * inward.y, 0.3)
+            };
+            let w = w.normalize();
+            rays += 1;
+            escaped += out(&si.spawn_ray(w)) as u32;
+            let (p, p_error, _) = triangle_point(&hit.v, [1.0 - hit.b1 - hit.b2, hit.b1, hit.b2], 0.0);
+            let bare = SurfacePoint { p, p_error, n: si.ng, slot: hit.slot };
+            escaped_without_margin += out(&bare.spawn_ray(w)) as u32;
+        }
+    }
+    assert_eq!(escaped, 0, "{escaped} of {rays} rays left the cube by an edge");
+    assert!(escaped_without_margin > 0, "the control: no ray of {rays} left without the margin");
 }
 
 // ----------------------------------------------------------- self-intersection

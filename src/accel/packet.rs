@@ -192,6 +192,7 @@ impl Accel {
                     b2: b2[l],
                     v: self.vertices(slot),
                     slot,
+                    margin: self.edge_margin(slot),
                 }
             })
         })

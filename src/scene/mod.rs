@@ -14,7 +14,7 @@ pub use json::{load_scene, parse_scene, LoadError};
 
 use crate::accel::{Accel, TriangleHit, LANES};
 use crate::camera::Camera;
-use crate::geometry::{barycentric_error, shading_normal, Frame, Ray, Shadow, SurfacePoint, NO_TRIANGLE};
+use crate::geometry::{edge_margin, shading_normal, triangle_point, Frame, Ray, Shadow, SurfacePoint, NO_TRIANGLE};
 use crate::light::{AreaLight, EnvironmentLight, Light, PointLight};
 use crate::materials::Bsdf;
 use crate::sampling::AliasTable;
@@ -535,6 +535,7 @@ fn area_lights(
                 two_sided: *two_sided,
                 prim: start + k as u32,
                 slot: NO_TRIANGLE,
+                margin: edge_margin(&v),
             }));
             names.push(format!("{name} (triangle {k})"));
         }
@@ -575,21 +576,21 @@ impl Scene {
         let v = hit.v;
         let m = &self.meshes[self.mesh_of(hit.slot, hit.prim)];
         let k = (hit.prim - m.start) as usize;
-        let b0 = 1.0 - hit.b1 - hit.b2;
-        let p = v[0] * b0 + v[1] * hit.b1 + v[2] * hit.b2;
+        // Kept off the edges by the triangle's margin (`triangle_point`).
+        let (p, p_error, b) = triangle_point(&v, [1.0 - hit.b1 - hit.b2, hit.b1, hit.b2], hit.margin);
         // What `normal_and_area` gives a triangle the BVH holds (non-zero,
         // finite area), without the area.
         let ng = (v[1] - v[0]).cross(v[2] - v[0]).normalize();
         let ns = match &m.shading {
             Some((indices, normals)) => {
                 let n = indices[k].map(|i| normals[i as usize]);
-                shading_normal(n[0] * b0 + n[1] * hit.b1 + n[2] * hit.b2, ng)
+                shading_normal(n[0] * b[0] + n[1] * b[1] + n[2] * b[2], ng)
             }
             None => ng,
         };
         SurfaceInteraction {
             p,
-            p_error: barycentric_error(&v, b0, hit.b1, hit.b2),
+            p_error,
             t: hit.t,
             ng,
             frame: Frame::from_normal(ns),
