@@ -230,18 +230,46 @@ impl Accel {
     #[inline(always)]
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<TriangleHit> {
         let pre = PreparedRay::new(ray)?;
-        let mut best_t = t_max;
+        let mut t = t_max;
         let skip = ray.skip.map(|slot| self.skip_run(slot));
-        let (slot, b1, b2) = self.traverse::<false>(&pre, skip, &mut best_t)?;
-        Some(TriangleHit {
-            t: best_t,
+        let (slot, b1, b2) = self.traverse::<false, false>(&pre, skip, &mut t)?;
+        Some(self.hit(t, slot, b1, b2))
+    }
+
+    /// `intersect` with every triangle of the visited leaves tested in f64
+    /// (`lanes::hit_in_f64`), and the closest hit by its distance in f64:
+    /// for a ray whose f32 hit lies within rounding of an edge
+    /// (`Scene::interaction`). Near a convex edge of a closed surface, the
+    /// f32 test can find both faces for a ray that passes just outside the
+    /// edge (in the shear's rounding; they share the edge's sign, so both
+    /// or neither), and order the two faces of one that clips the corner
+    /// either way (their distances a few 1e-9 apart): either way a path
+    /// went on from the inside face of the shell, and light inside a
+    /// closed cube reached camera paths (2 of 150 renders of
+    /// `a_closed_shell_keeps_its_light_in`'s cube under `path`, session
+    /// 47). In f64 the side of each edge errs by ~1e-16 of its terms, and
+    /// so does the order. Slow (per triangle, not per block), and rare.
+    #[cold]
+    #[inline(never)]
+    pub fn intersect_exact(&self, ray: &Ray, t_max: f32) -> Option<TriangleHit> {
+        let pre = PreparedRay::new(ray)?;
+        let mut t = t_max;
+        let skip = ray.skip.map(|slot| self.skip_run(slot));
+        let (slot, b1, b2) = self.traverse::<false, true>(&pre, skip, &mut t)?;
+        Some(self.hit(t, slot, b1, b2))
+    }
+
+    #[inline(always)]
+    fn hit(&self, t: f32, slot: u32, b1: f32, b2: f32) -> TriangleHit {
+        TriangleHit {
+            t,
             prim: self.bvh.primitive_indices[slot as usize],
             b1,
             b2,
             v: self.vertices(slot),
             slot,
             margin: self.edge_margin(slot),
-        })
+        }
     }
 
     /// Whether anything but the triangles of `ray.skip` and their coplanar
@@ -255,7 +283,7 @@ impl Accel {
             return false;
         };
         let (skip, mut t_max) = (ray.skip.map(|slot| self.skip_run(slot)), t_max);
-        self.traverse::<true>(&pre, skip, &mut t_max).is_some()
+        self.traverse::<true, false>(&pre, skip, &mut t_max).is_some()
     }
 
     /// Calls `visit` with the slot of every triangle whose bounds overlap
@@ -306,7 +334,7 @@ impl Accel {
     /// once `Scene::intersect` was inlined into several integrators, a call
     /// per visited group).
     #[inline(always)]
-    fn traverse<const ANY_HIT: bool>(
+    fn traverse<const ANY_HIT: bool, const EXACT: bool>(
         &self,
         r: &PreparedRay,
         skip: [(u32, u32); 2],
@@ -321,6 +349,9 @@ impl Accel {
         // per-node reordering and the ray's octant.
         let oct_inv4 = if ANY_HIT { 0 } else { r.oct_inv4 };
         let mut stack = GroupStack::new();
+        // With `EXACT`, the best hit's distance in f64 and whether the ray
+        // meets its triangle from the front (`intersect_exact`).
+        let (mut best_t64, mut best_front) = (*t_max as f64, false);
         // The root as the only inner child of a virtual parent.
         let mut nodes = (0u32, 0x8000_0000u32);
         loop {
@@ -335,13 +366,29 @@ impl Accel {
                 let slot = (bit - 24) ^ (oct_inv4 & 0xff);
                 let child = nodes.0 + (hits & !(u32::MAX << slot)).count_ones();
                 let node = &self.bvh.nodes[child as usize];
-                let hit_mask = intersect_node(node, r, *t_max, oct_inv4);
+                // (f32 rounding of an f64 distance, and a box test with a
+                // slack, admit the hits at t_max; `TIE` more is to spare.)
+                let reach = if EXACT { *t_max * (1.0 + TIE) } else { *t_max };
+                let hit_mask = intersect_node(node, r, reach, oct_inv4);
                 nodes = (node.child_base_idx, (hit_mask & 0xff00_0000) | node.imask as u32);
                 let base = node.primitive_base_idx;
                 tris = (base, hit_mask & 0x00ff_ffff & !(group_bits(skip[0], base) | group_bits(skip[1], base)));
             }
             if tris.1 != 0 {
                 for (block, lanes) in blocks(tris.0, tris.1) {
+                    if EXACT {
+                        for lane in (0..4).filter(|l| lanes >> l & 1 != 0) {
+                            let tri = self.blocks[block as usize].vertices(lane as usize);
+                            let Some(h) = lanes::hit_in_f64(r.o, r.d, &tri) else { continue };
+                            // At one distance (a ray through an edge), the
+                            // face the ray meets from the front wins.
+                            if h.t < best_t64 || (h.t == best_t64 && h.front && !best_front) {
+                                (best_t64, *t_max, best_front) = (h.t, h.t as f32, h.front);
+                                best = Some((4 * block + lane, h.b1, h.b2));
+                            }
+                        }
+                        continue;
+                    }
                     if let Some((lane, b1, b2)) = r.intersect_block(&self.blocks[block as usize], lanes, t_max) {
                         best = Some((4 * block + lane, b1, b2));
                         if ANY_HIT {
@@ -501,6 +548,10 @@ pub fn intersect_triangle(ray: &Ray, tri: &[Vec3A; 3], t_max: f32) -> Option<(f3
     let (_, b1, b2) = PreparedRay::new(ray)?.intersect_block(&TriangleBlock::new([*tri].into_iter()), 1, &mut t)?;
     Some((t, b1, b2))
 }
+
+/// The margin, as a fraction of t_max, by which an exact traversal
+/// (`Accel::intersect_exact`) enters boxes beyond its best hit.
+const TIE: f32 = 1.0 / 65536.0;
 
 /// Four triangles of consecutive BVH slots, stored by coordinate, one per
 /// SIMD lane: `c[3 k + j]` holds coordinate k (x, y, z) of vertex j of each.

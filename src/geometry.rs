@@ -125,11 +125,26 @@ const MAX_EDGE_MARGIN: f64 = 1.0 / 64.0;
 /// fraction of about 3 margin of the points.
 #[inline(always)]
 pub fn triangle_point(v: &[Vec3A; 3], b: [f32; 3], margin: f32) -> (Vec3A, Vec3A, [f32; 3]) {
-    // One vector compare (`f32::min` orders NaNs, which costs more); a NaN
-    // barycentric is left as it is.
-    let near_edge = Vec3A::from(b).cmplt(Vec3A::splat(margin)).any();
-    let b = if near_edge { off_edges(b, margin) } else { b };
+    let b = kept_off_edges(b, margin);
     (v[0] * b[0] + v[1] * b[1] + v[2] * b[2], barycentric_error(v, b[0], b[1], b[2]), b)
+}
+
+/// `b`, or if one is below `margin` (`near_edges`), each raised to at
+/// least `margin` and the three renormalised (`triangle_point`).
+#[inline(always)]
+pub fn kept_off_edges(b: [f32; 3], margin: f32) -> [f32; 3] {
+    if near_edges(b, margin) {
+        off_edges(b, margin)
+    } else {
+        b
+    }
+}
+
+/// Whether a barycentric of `b` is below `margin` (a NaN is not). One
+/// vector compare: `f32::min` orders NaNs, which costs more.
+#[inline(always)]
+pub fn near_edges(b: [f32; 3], margin: f32) -> bool {
+    Vec3A::from(b).cmplt(Vec3A::splat(margin)).any()
 }
 
 #[cold]

@@ -229,6 +229,11 @@ pub(super) fn watertight<L: Lanes>(
 /// N.V and N.d; the bounds, themselves evaluated with a few roundings, are
 /// doubled. Beyond them both signs are certain, and t > 0 exactly.
 pub(super) fn near_t_in_f64(o: Vec3A, d: Vec3A, tri: &[Vec3A; 3]) -> Option<f32> {
+    ahead_t_in_f64(o, d, tri).map(|t| t as f32)
+}
+
+/// `near_t_in_f64`'s distance, in f64 (its f32 rounding is above 0).
+fn ahead_t_in_f64(o: Vec3A, d: Vec3A, tri: &[Vec3A; 3]) -> Option<f64> {
     let [p0, p1, p2] = tri.map(|v| v.as_dvec3());
     let (a, b, v, d) = (p1 - p0, p2 - p0, p0 - o.as_dvec3(), d.as_dvec3());
     let (aa, ba) = (a.abs(), b.abs());
@@ -237,8 +242,40 @@ pub(super) fn near_t_in_f64(o: Vec3A, d: Vec3A, tri: &[Vec3A; 3]) -> Option<f32>
     let (num, den) = (n.dot(v), n.dot(d));
     let bound = |w: DVec3| 2.0 * gamma64(9) * m.dot(w.abs());
     let sign = den.signum();
-    let t = (num / den) as f32;
-    (den.abs() > bound(d) && num * sign > bound(v) && t > 0.0).then_some(t)
+    let t = num / den;
+    (den.abs() > bound(d) && num * sign > bound(v) && t as f32 > 0.0).then_some(t)
+}
+
+/// A hit found in f64 (`hit_in_f64`).
+pub(super) struct HitF64 {
+    pub t: f64,
+    pub b1: f32,
+    pub b2: f32,
+    /// The ray meets the triangle's front (winding) side: N . d < 0.
+    pub front: bool,
+}
+
+/// The ray (o, d) against `tri` in f64, for `Accel::intersect_exact`:
+/// inside by the signs of the scalar triple products
+/// ((v_i - o) x (v_j - o)) . d of its edges (the side of the ray each edge
+/// passes; zero counts for both sides), which two triangles sharing an
+/// edge compute exactly negated (each product in a cross component
+/// commutes), so a ray cannot pass between them; at the distance of
+/// `ahead_t_in_f64`, if that is certainly ahead. The three products sum to
+/// N . d, N = (v1 - v0) x (v2 - v0).
+pub(super) fn hit_in_f64(o: Vec3A, d: Vec3A, tri: &[Vec3A; 3]) -> Option<HitF64> {
+    let (od, dd) = (o.as_dvec3(), d.as_dvec3());
+    let [a, b, c] = tri.map(|v| v.as_dvec3() - od);
+    let side = |p: DVec3, q: DVec3| p.cross(q).dot(dd);
+    // The weights of a, b and c.
+    let (u, v, w) = (side(b, c), side(c, a), side(a, b));
+    let inside = (u >= 0.0 && v >= 0.0 && w >= 0.0) || (u <= 0.0 && v <= 0.0 && w <= 0.0);
+    let sum = u + v + w;
+    if !inside || sum == 0.0 {
+        return None;
+    }
+    let t = ahead_t_in_f64(o, d, tri)?;
+    Some(HitF64 { t, b1: (v / sum) as f32, b2: (w / sum) as f32, front: sum < 0.0 })
 }
 
 /// Higham's gamma_n in f64.

@@ -182,20 +182,7 @@ impl Accel {
         let mut hits = Hits::new(t_max);
         let found = self.traverse8(&pre, &mut hits);
         let (t, slot, b1, b2) = (hits.t.to_array(), hits.slot.to_array(), hits.b1.to_array(), hits.b2.to_array());
-        std::array::from_fn(|l| {
-            (found >> l & 1 != 0).then(|| {
-                let slot = slot[l] as u32;
-                super::TriangleHit {
-                    t: t[l],
-                    prim: self.bvh.primitive_indices[slot as usize],
-                    b1: b1[l],
-                    b2: b2[l],
-                    v: self.vertices(slot),
-                    slot,
-                    margin: self.edge_margin(slot),
-                }
-            })
-        })
+        std::array::from_fn(|l| (found >> l & 1 != 0).then(|| self.hit(t[l], slot[l] as u32, b1[l], b2[l])))
     }
 
     /// The packet traversal: the closest hit of each lane's ray, into

@@ -14,7 +14,10 @@ pub use json::{load_scene, parse_scene, LoadError};
 
 use crate::accel::{Accel, TriangleHit, LANES};
 use crate::camera::Camera;
-use crate::geometry::{edge_margin, shading_normal, triangle_point, Frame, Ray, Shadow, SurfacePoint, NO_TRIANGLE};
+use crate::geometry::{
+    barycentric_error, edge_margin, kept_off_edges, near_edges, shading_normal, Frame, Ray, Shadow, SurfacePoint,
+    NO_TRIANGLE,
+};
 use crate::light::{AreaLight, EnvironmentLight, Light, PointLight};
 use crate::materials::Bsdf;
 use crate::sampling::AliasTable;
@@ -552,7 +555,7 @@ impl Scene {
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceInteraction> {
         count_rays(1);
         let hit = self.accel.intersect(ray, f32::INFINITY)?;
-        Some(self.interaction(ray, &hit))
+        self.interaction(ray, &hit)
     }
 
     /// `intersect` for the first `n` rays of a packet, traced together
@@ -566,18 +569,38 @@ impl Scene {
         count_rays(n as u32);
         let hits = self.accel.intersect8(rays, [f32::INFINITY; LANES], (1 << n) - 1);
         for (l, (ray, hit)) in rays.iter().zip(&hits).take(n).enumerate() {
-            each(l, hit.as_ref().map(|hit| self.interaction(ray, hit)));
+            each(l, hit.as_ref().and_then(|hit| self.interaction(ray, hit)));
         }
     }
 
-    /// The surface interaction of a ray's hit.
+    /// The surface interaction of a ray's hit, None if traced again in
+    /// f64 it misses (`hit_by_an_edge`).
     #[inline(always)]
-    fn interaction(&self, ray: &Ray, hit: &TriangleHit) -> SurfaceInteraction {
+    fn interaction(&self, ray: &Ray, hit: &TriangleHit) -> Option<SurfaceInteraction> {
+        let b = [1.0 - hit.b1 - hit.b2, hit.b1, hit.b2];
+        let (hit, b) = if near_edges(b, hit.margin) { self.hit_by_an_edge(ray)? } else { (*hit, b) };
+        Some(self.interaction_at(ray, &hit, b))
+    }
+
+    /// A hit within its triangle's margin of an edge (`triangle_point`),
+    /// where the f32 test can be wrong about a ray that clips or passes
+    /// a convex edge: it is traced again in f64 (`Accel::intersect_exact`),
+    /// and the point is kept off the edges. (Every ray `interaction` serves
+    /// was traced to infinity.)
+    #[cold]
+    #[inline(never)]
+    fn hit_by_an_edge(&self, ray: &Ray) -> Option<(TriangleHit, [f32; 3])> {
+        let hit = self.accel.intersect_exact(ray, f32::INFINITY)?;
+        Some((hit, kept_off_edges([1.0 - hit.b1 - hit.b2, hit.b1, hit.b2], hit.margin)))
+    }
+
+    /// The surface interaction at barycentrics `b` of a ray's hit.
+    #[inline(always)]
+    fn interaction_at(&self, ray: &Ray, hit: &TriangleHit, b: [f32; 3]) -> SurfaceInteraction {
         let v = hit.v;
         let m = &self.meshes[self.mesh_of(hit.slot, hit.prim)];
         let k = (hit.prim - m.start) as usize;
-        // Kept off the edges by the triangle's margin (`triangle_point`).
-        let (p, p_error, b) = triangle_point(&v, [1.0 - hit.b1 - hit.b2, hit.b1, hit.b2], hit.margin);
+        let (p, p_error) = (v[0] * b[0] + v[1] * b[1] + v[2] * b[2], barycentric_error(&v, b[0], b[1], b[2]));
         // What `normal_and_area` gives a triangle the BVH holds (non-zero,
         // finite area), without the area.
         let ng = (v[1] - v[0]).cross(v[2] - v[0]).normalize();
