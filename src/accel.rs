@@ -15,6 +15,10 @@
 //!   t's error bound (pbrt-v4's), or, within it, by the sign of the plane
 //!   distance in f64 with a bound of its own (`lanes::near_t_in_f64`), so
 //!   a ray leaving an object just above a large floor still meets it.
+//! - Near an edge: a hit within rounding of its triangle's edge
+//!   (`Scene::interaction` finds it) is traced again in f64
+//!   (`Accel::intersect_exact`), where the f32 test can meet a ray that
+//!   passes a convex edge on the face it would leave by.
 //! - Packets: eight coherent rays at once (`packet.rs`, `intersect8`), each
 //!   lane finding what its ray finds alone.
 //! - Node: obvhs's own child-box test clamps t_near to an absolute 1e-4 (culling
@@ -63,6 +67,12 @@ pub struct TriangleHit {
     pub slot: u32,
     /// The triangle's `geometry::edge_margin`, computed when it was built.
     pub margin: f32,
+    /// A bound on the error of the barycentrics from the f32 test's edge
+    /// functions (`lanes::Candidates::edge_error`; 0 from
+    /// `intersect_exact`): where one is within it of 0 the test may be
+    /// wrong about the ray (`Scene::interaction` then asks
+    /// `intersect_exact`).
+    pub edge_error: f32,
 }
 
 pub struct Accel {
@@ -232,8 +242,8 @@ impl Accel {
         let pre = PreparedRay::new(ray)?;
         let mut t = t_max;
         let skip = ray.skip.map(|slot| self.skip_run(slot));
-        let (slot, b1, b2) = self.traverse::<false, false>(&pre, skip, &mut t)?;
-        Some(self.hit(t, slot, b1, b2))
+        let (slot, b1, b2, edge_error) = self.traverse::<false, false>(&pre, skip, &mut t)?;
+        Some(self.hit(t, slot, b1, b2, edge_error))
     }
 
     /// `intersect` with every triangle of the visited leaves tested in f64
@@ -255,12 +265,12 @@ impl Accel {
         let pre = PreparedRay::new(ray)?;
         let mut t = t_max;
         let skip = ray.skip.map(|slot| self.skip_run(slot));
-        let (slot, b1, b2) = self.traverse::<false, true>(&pre, skip, &mut t)?;
-        Some(self.hit(t, slot, b1, b2))
+        let (slot, b1, b2, _) = self.traverse::<false, true>(&pre, skip, &mut t)?;
+        Some(self.hit(t, slot, b1, b2, 0.0))
     }
 
     #[inline(always)]
-    fn hit(&self, t: f32, slot: u32, b1: f32, b2: f32) -> TriangleHit {
+    fn hit(&self, t: f32, slot: u32, b1: f32, b2: f32, edge_error: f32) -> TriangleHit {
         TriangleHit {
             t,
             prim: self.bvh.primitive_indices[slot as usize],
@@ -269,6 +279,7 @@ impl Accel {
             v: self.vertices(slot),
             slot,
             margin: self.edge_margin(slot),
+            edge_error,
         }
     }
 
@@ -339,7 +350,7 @@ impl Accel {
         r: &PreparedRay,
         skip: [(u32, u32); 2],
         t_max: &mut f32,
-    ) -> Option<(u32, f32, f32)> {
+    ) -> Option<(u32, f32, f32, f32)> {
         let mut best = None;
         if self.bvh.nodes.is_empty() {
             return best;
@@ -349,9 +360,9 @@ impl Accel {
         // per-node reordering and the ray's octant.
         let oct_inv4 = if ANY_HIT { 0 } else { r.oct_inv4 };
         let mut stack = GroupStack::new();
-        // With `EXACT`, the best hit's distance in f64 and whether the ray
-        // meets its triangle from the front (`intersect_exact`).
-        let (mut best_t64, mut best_front) = (*t_max as f64, false);
+        // With `EXACT`, the best hit's distance in f64, its error bound and
+        // its triangle (`intersect_exact`).
+        let (mut best_t64, mut best_err, mut best_tri) = (*t_max as f64, 0.0, [Vec3A::ZERO; 3]);
         // The root as the only inner child of a virtual parent.
         let mut nodes = (0u32, 0x8000_0000u32);
         loop {
@@ -380,17 +391,20 @@ impl Accel {
                         for lane in (0..4).filter(|l| lanes >> l & 1 != 0) {
                             let tri = self.blocks[block as usize].vertices(lane as usize);
                             let Some(h) = lanes::hit_in_f64(r.o, r.d, &tri) else { continue };
-                            // At one distance (a ray through an edge), the
-                            // face the ray meets from the front wins.
-                            if h.t < best_t64 || (h.t == best_t64 && h.front && !best_front) {
-                                (best_t64, *t_max, best_front) = (h.t, h.t as f32, h.front);
-                                best = Some((4 * block + lane, h.b1, h.b2));
+                            // At one distance within the error (a ray
+                            // through an edge), the face it enters by wins.
+                            let tie = (h.t - best_t64).abs() <= h.err + best_err;
+                            if if tie { lanes::enters_by(&tri, &best_tri, r.d) } else { h.t < best_t64 } {
+                                (best_t64, best_err, best_tri, *t_max) = (h.t, h.err, tri, h.t as f32);
+                                best = Some((4 * block + lane, h.b1, h.b2, 0.0));
                             }
                         }
                         continue;
                     }
-                    if let Some((lane, b1, b2)) = r.intersect_block(&self.blocks[block as usize], lanes, t_max) {
-                        best = Some((4 * block + lane, b1, b2));
+                    if let Some((lane, b1, b2, edge_error)) =
+                        r.intersect_block(&self.blocks[block as usize], lanes, t_max)
+                    {
+                        best = Some((4 * block + lane, b1, b2, edge_error));
                         if ANY_HIT {
                             return best;
                         }
@@ -545,7 +559,7 @@ pub fn intersect_triangle(ray: &Ray, tri: &[Vec3A; 3], t_max: f32) -> Option<(f3
         return None;
     }
     let mut t = t_max;
-    let (_, b1, b2) = PreparedRay::new(ray)?.intersect_block(&TriangleBlock::new([*tri].into_iter()), 1, &mut t)?;
+    let (_, b1, b2, _) = PreparedRay::new(ray)?.intersect_block(&TriangleBlock::new([*tri].into_iter()), 1, &mut t)?;
     Some((t, b1, b2))
 }
 
@@ -702,7 +716,7 @@ impl PreparedRay {
     /// a segment shorter than that error, whose f32 t reaches t_max, still
     /// misses what lies within it).
     #[inline(always)]
-    fn intersect_block(&self, block: &TriangleBlock, lanes: u32, t_max: &mut f32) -> Option<(u32, f32, f32)> {
+    fn intersect_block(&self, block: &TriangleBlock, lanes: u32, t_max: &mut f32) -> Option<(u32, f32, f32, f32)> {
         // (`min` tells the compiler the rows are in bounds.)
         let [kx, ky, kz] = self.k.map(|k| k.min(2));
         let splat = Vec4::splat;
@@ -717,7 +731,7 @@ impl PreparedRay {
         let c = lanes::watertight(x, y, z, splat(sz), splat(*t_max), lanes)?;
         let mut candidates = c.mask | c.near;
         let (mut t, ts, ds) = (c.t.to_array(), c.ts.to_array(), c.ds.to_array());
-        let (b1, b2) = (c.b1.to_array(), c.b2.to_array());
+        let (b1, b2, edge_error) = (c.b1.to_array(), c.b2.to_array(), c.edge_error.to_array());
         let mut hit = None;
         while candidates != 0 {
             let lane = 31 - candidates.leading_zeros();
@@ -727,7 +741,7 @@ impl PreparedRay {
             let taken = ts[l] < *t_max * ds[l] && (sure || self.near_hit(block, l, &mut t[l]));
             if taken && t[l] < *t_max {
                 *t_max = t[l];
-                hit = Some((lane, b1[l], b2[l]));
+                hit = Some((lane, b1[l], b2[l], edge_error[l]));
             }
         }
         hit
@@ -1135,8 +1149,8 @@ mod tests {
             let (mut t_one, mut want, mut hits) = (t0, None, 0);
             for lane in (0..4).rev().filter(|l| lanes >> l & 1 != 0) {
                 let alone = TriangleBlock::new([tris[lane as usize]].into_iter());
-                if let Some((_, b1, b2)) = pre.intersect_block(&alone, 1, &mut t_one) {
-                    want = Some((lane, b1, b2));
+                if let Some((_, b1, b2, edge_error)) = pre.intersect_block(&alone, 1, &mut t_one) {
+                    want = Some((lane, b1, b2, edge_error));
                 }
                 hits += intersect_triangle(&ray, &tris[lane as usize], t0).is_some() as u32;
             }
@@ -1154,7 +1168,7 @@ mod tests {
         let pre = PreparedRay::new(&Ray::new(Vec3A::new(0.0, 0.0, 1.0), -Vec3A::Z)).unwrap();
         let alone = |tri: [Vec3A; 3]| {
             let mut t = f32::INFINITY;
-            pre.intersect_block(&TriangleBlock::new([tri].into_iter()), 1, &mut t).map(|h| (h.1, h.2))
+            pre.intersect_block(&TriangleBlock::new([tri].into_iter()), 1, &mut t).map(|h| (h.1, h.2, h.3))
         };
         let (hit_left, hit_right) = (alone(left), alone(right));
         assert!(hit_left.is_some() != hit_right.is_some(), "exactly one of the two is hit");
@@ -1163,7 +1177,7 @@ mod tests {
             (tris[l], tris[r]) = (left, right);
             let mut t = f32::INFINITY;
             let got = pre.intersect_block(&TriangleBlock::new(tris.into_iter()), 0xf, &mut t);
-            let want = hit_left.map(|h| (l as u32, h.0, h.1)).or(hit_right.map(|h| (r as u32, h.0, h.1)));
+            let want = hit_left.map(|h| (l as u32, h.0, h.1, h.2)).or(hit_right.map(|h| (r as u32, h.0, h.1, h.2)));
             assert_eq!(got, want, "left in lane {l}, right in lane {r}");
         }
     }

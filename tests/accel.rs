@@ -73,8 +73,16 @@ fn brute_without(tris: &[[Vec3A; 3]], ray: &Ray, t_max: f32, skip: impl Fn(u32) 
     for (i, tri) in tris.iter().enumerate().filter(|&(i, _)| !skip(i as u32)) {
         let tm = best.map_or(t_max, |b| b.t);
         if let Some((t, b1, b2)) = intersect_triangle(ray, tri, tm) {
-            best =
-                Some(TriangleHit { t, prim: i as u32, b1, b2, v: *tri, slot: NO_TRIANGLE, margin: edge_margin(tri) });
+            best = Some(TriangleHit {
+                t,
+                prim: i as u32,
+                b1,
+                b2,
+                v: *tri,
+                slot: NO_TRIANGLE,
+                margin: edge_margin(tri),
+                edge_error: 0.0,
+            });
         }
     }
     best

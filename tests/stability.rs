@@ -1051,20 +1051,25 @@ fn a_point_by_a_cubes_edge_stays_inside_it() {
             let (Some(si), Some(hit)) = (scene.intersect(&ray), scene.accel.intersect(&ray, f32::INFINITY)) else {
                 panic!("the ray to ({x}, {y}, {z}) misses the cube");
             };
-            // Into the cube across the face hit, out through the other.
+            // Into the cube across the face hit (normal n), out through the
+            // other.
             let (inward, outward) =
                 (Vec3A::new(0.5 - x, 0.5 - y, 0.0).signum(), Vec3A::new(x - 0.5, y - 0.5, 0.0).signum());
-            let w = if si.ng.x.abs() > 0.5 {
-                Vec3A::new(0.8 * inward.x, 0.5 * outward.y, 0.3)
-            } else {
-                Vec3A::new(0.5 * outward.x, 0.8 * inward.y, 0.3)
+            let across = |n: Vec3A| {
+                let w = if n.x.abs() > 0.5 {
+                    Vec3A::new(0.8 * inward.x, 0.5 * outward.y, 0.3)
+                } else {
+                    Vec3A::new(0.5 * outward.x, 0.8 * inward.y, 0.3)
+                };
+                w.normalize()
             };
-            let w = w.normalize();
             rays += 1;
-            escaped += out(&si.spawn_ray(w)) as u32;
+            escaped += out(&si.spawn_ray(across(si.ng))) as u32;
+            // The control, on the f32 test's own hit and face.
+            let n = (hit.v[1] - hit.v[0]).cross(hit.v[2] - hit.v[0]).normalize();
             let (p, p_error, _) = triangle_point(&hit.v, [1.0 - hit.b1 - hit.b2, hit.b1, hit.b2], 0.0);
-            let bare = SurfacePoint { p, p_error, n: si.ng, slot: hit.slot };
-            escaped_without_margin += out(&bare.spawn_ray(w)) as u32;
+            let bare = SurfacePoint { p, p_error, n, slot: hit.slot };
+            escaped_without_margin += out(&bare.spawn_ray(across(n))) as u32;
         }
     }
     assert_eq!(escaped, 0, "{escaped} of {rays} rays left the cube by an edge");
@@ -1073,42 +1078,47 @@ fn a_point_by_a_cubes_edge_stays_inside_it() {
 
 /// A ray that passes a cube's edge, clipping it or missing it by a few
 /// ulps, meets the cube from outside first, if at all: the first hit on
-/// the cube faces the ray (d . n < 0). Rays enter by the face z = 0.6 and
-/// would leave by y = 0.6, aimed at points of that edge moved off it by
-/// -8..8 steps of 2^-26 along (y + z). The control: the f32 test alone
-/// (`Accel::intersect`) first meets some of them on a back face, which had
-/// a path go on inside the shell (session 47).
+/// the cube faces the ray (d . n < 0; the cube is wound outward). Rays
+/// enter by the face z = 0.6 and would leave by y = 0.6, aimed at points
+/// of that edge moved off it by -8..8 ulps along (y + z), from 0.5, 10,
+/// 100 and 1000 away (the f32 test's rounding grows with the distance).
+/// The control: the f32 test alone (`Accel::intersect`) meets thousands of
+/// them first on a back face, which had a path go on inside the shell
+/// (session 47).
 #[test]
 fn a_ray_by_a_cubes_edge_meets_it_from_outside() {
     let text = r#"{
   "camera": {"position": [0.5, 0.5, -1], "look_at": [0.5, 0.5, 0.5], "fov": 30, "width": 8, "height": 8},
   "materials": {"white": {"type": "diffuse", "reflectance": 0.7}},
   "objects": [
-    {"shape": {"type": "cuboid", "min": [0, 0, 0], "max": [1, 1, 1], "inward": true}, "material": "white"},
+    {"shape": {"type": "cuboid", "min": [-3000, -3000, -3000], "max": [3000, 3000, 3000], "inward": true}, "material": "white"},
     {"shape": {"type": "cuboid", "min": [0.4, 0.4, 0.4], "max": [0.6, 0.6, 0.6]}, "material": "white"}
   ]
 }"#;
     let scene = parse_scene(text, "cube", Path::new(".")).unwrap_or_else(|e| panic!("{e}")).build();
     let on_cube = |p: Vec3A| p.cmpge(Vec3A::splat(0.39)).all() && p.cmple(Vec3A::splat(0.61)).all();
-    let (mut inside, mut inside_f32, mut on_it) = (0, 0, 0);
-    let mut u = prism::sampling::Sampler::new(7, 0, 0);
-    for k in 0..4000 {
-        let step = ((k % 17) as f32 - 8.0) * 2f32.powi(-26);
-        let target = Vec3A::new(0.42 + 0.16 * u.get1d(), 0.6 + step, 0.6 + step);
-        let d = Vec3A::new(u.get1d() - 0.5, 0.2 + u.get1d(), -0.2 - u.get1d()).normalize();
-        let ray = Ray::new(target - 0.5 * d, d);
-        if let Some(si) = scene.intersect(&ray).filter(|si| on_cube(si.p)) {
-            on_it += 1;
-            inside += (d.dot(si.ng) >= 0.0) as u32;
+    let mut inside_f32 = 0;
+    for distance in [0.5f32, 10.0, 100.0, 1000.0] {
+        let (mut inside, mut on_it) = (0, 0);
+        let mut u = prism::sampling::Sampler::new(7, 0, 0);
+        for k in 0..4000 {
+            let step = ((k % 17) as f32 - 8.0) * 2f32.powi(-24);
+            let target = Vec3A::new(0.42 + 0.16 * u.get1d(), 0.6 + step, 0.6 + step);
+            let d = Vec3A::new(u.get1d() - 0.5, 0.2 + u.get1d(), -0.2 - u.get1d()).normalize();
+            let ray = Ray::new(target - distance * d, d);
+            if let Some(si) = scene.intersect(&ray).filter(|si| on_cube(si.p)) {
+                on_it += 1;
+                inside += (d.dot(si.ng) >= 0.0) as u32;
+            }
+            if let Some(h) = scene.accel.intersect(&ray, f32::INFINITY) {
+                let n = (h.v[1] - h.v[0]).cross(h.v[2] - h.v[0]);
+                inside_f32 += (on_cube(ray.at(h.t)) && d.dot(n) >= 0.0) as u32;
+            }
         }
-        if let Some(h) = scene.accel.intersect(&ray, f32::INFINITY) {
-            let n = (h.v[1] - h.v[0]).cross(h.v[2] - h.v[0]);
-            inside_f32 += (on_cube(ray.at(h.t)) && d.dot(n) >= 0.0) as u32;
-        }
+        assert!(on_it > 1000, "from {distance}: only {on_it} of 4000 rays met the cube");
+        assert_eq!(inside, 0, "from {distance}: {inside} of {on_it} rays met the cube first on a back face");
     }
-    assert!(on_it > 1000, "only {on_it} of 4000 rays met the cube");
-    assert_eq!(inside, 0, "{inside} of {on_it} rays met the cube first on a back face");
-    assert!(inside_f32 > 0, "the control: the f32 test met no ray first on a back face");
+    assert!(inside_f32 > 1000, "the control: the f32 test met only {inside_f32} rays first on a back face");
 }
 
 // ----------------------------------------------------------- self-intersection

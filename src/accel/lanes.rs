@@ -144,6 +144,11 @@ pub(super) struct Candidates<L> {
     /// Lanes inside the triangle whose t is within its rounding error of 0:
     /// a hit or not as `near_t_in_f64` finds.
     pub near: u32,
+    /// A bound on the barycentrics' error from the edge functions' rounding
+    /// (pbrt-v4's delta_e over |det|): where a barycentric is within it of
+    /// 0 the ray passes that close to an edge, and the test may be wrong
+    /// about it (`Accel::intersect_exact` settles it).
+    pub edge_error: L,
     pub t: L,
     pub b1: L,
     pub b2: L,
@@ -208,10 +213,11 @@ pub(super) fn watertight<L: Lanes>(
     // delta_t, which grows with the vertices' distance: a few 1e-6 of a
     // floor's size) the caller settles its sign in f64 (`near_t_in_f64`),
     // so a ray leaving an object just above a large floor still meets it.
-    let delta = delta_t(&x, &y, &z, sz, &e, rcp);
+    let (delta, delta_e) = delta_t(&x, &y, &z, sz, &e, rcp);
     let mask = L::bitmask(t.gt(delta)) & live;
     let near = L::bitmask(t.gt(-delta)) & live & !mask;
-    Some(Candidates { mask, near, t, b1: e[1] * rcp, b2: e[2] * rcp, ts, ds })
+    let edge_error = delta_e * rcp.abs();
+    Some(Candidates { mask, near, edge_error, t, b1: e[1] * rcp, b2: e[2] * rcp, ts, ds })
 }
 
 /// The distance along the ray (o, d) to the plane of `tri` when it is
@@ -229,11 +235,15 @@ pub(super) fn watertight<L: Lanes>(
 /// N.V and N.d; the bounds, themselves evaluated with a few roundings, are
 /// doubled. Beyond them both signs are certain, and t > 0 exactly.
 pub(super) fn near_t_in_f64(o: Vec3A, d: Vec3A, tri: &[Vec3A; 3]) -> Option<f32> {
-    ahead_t_in_f64(o, d, tri).map(|t| t as f32)
+    ahead_t_in_f64(o, d, tri).map(|(t, _)| t as f32)
 }
 
-/// `near_t_in_f64`'s distance, in f64 (its f32 rounding is above 0).
-fn ahead_t_in_f64(o: Vec3A, d: Vec3A, tri: &[Vec3A; 3]) -> Option<f64> {
+/// `near_t_in_f64`'s distance, in f64 (its f32 rounding is above 0), with
+/// a bound on its error: the computed N.V and N.d lie within their bounds
+/// bv, bd of the exact ones (above), so t errs by at most
+/// |t| (bv / (|N.V| - bv) + bd / (|N.d| - bd)), and the division by one
+/// rounding more (counted twice).
+fn ahead_t_in_f64(o: Vec3A, d: Vec3A, tri: &[Vec3A; 3]) -> Option<(f64, f64)> {
     let [p0, p1, p2] = tri.map(|v| v.as_dvec3());
     let (a, b, v, d) = (p1 - p0, p2 - p0, p0 - o.as_dvec3(), d.as_dvec3());
     let (aa, ba) = (a.abs(), b.abs());
@@ -241,18 +251,19 @@ fn ahead_t_in_f64(o: Vec3A, d: Vec3A, tri: &[Vec3A; 3]) -> Option<f64> {
     let n = a.cross(b);
     let (num, den) = (n.dot(v), n.dot(d));
     let bound = |w: DVec3| 2.0 * gamma64(9) * m.dot(w.abs());
-    let sign = den.signum();
+    let (sign, bv, bd) = (den.signum(), bound(v), bound(d));
     let t = num / den;
-    (den.abs() > bound(d) && num * sign > bound(v) && t as f32 > 0.0).then_some(t)
+    let err = t.abs() * (bv / (num.abs() - bv) + bd / (den.abs() - bd) + 2.0 * f64::EPSILON);
+    (den.abs() > bd && num * sign > bv && t as f32 > 0.0).then_some((t, err))
 }
 
 /// A hit found in f64 (`hit_in_f64`).
 pub(super) struct HitF64 {
     pub t: f64,
+    /// A bound on the error of `t` (`ahead_t_in_f64`).
+    pub err: f64,
     pub b1: f32,
     pub b2: f32,
-    /// The ray meets the triangle's front (winding) side: N . d < 0.
-    pub front: bool,
 }
 
 /// The ray (o, d) against `tri` in f64, for `Accel::intersect_exact`:
@@ -261,8 +272,8 @@ pub(super) struct HitF64 {
 /// passes; zero counts for both sides), which two triangles sharing an
 /// edge compute exactly negated (each product in a cross component
 /// commutes), so a ray cannot pass between them; at the distance of
-/// `ahead_t_in_f64`, if that is certainly ahead. The three products sum to
-/// N . d, N = (v1 - v0) x (v2 - v0).
+/// `ahead_t_in_f64`, if that is certainly ahead. (The three products sum
+/// to N . d, N = (v1 - v0) x (v2 - v0).)
 pub(super) fn hit_in_f64(o: Vec3A, d: Vec3A, tri: &[Vec3A; 3]) -> Option<HitF64> {
     let (od, dd) = (o.as_dvec3(), d.as_dvec3());
     let [a, b, c] = tri.map(|v| v.as_dvec3() - od);
@@ -274,8 +285,22 @@ pub(super) fn hit_in_f64(o: Vec3A, d: Vec3A, tri: &[Vec3A; 3]) -> Option<HitF64>
     if !inside || sum == 0.0 {
         return None;
     }
-    let t = ahead_t_in_f64(o, d, tri)?;
-    Some(HitF64 { t, b1: (v / sum) as f32, b2: (w / sum) as f32, front: sum < 0.0 })
+    let (t, err) = ahead_t_in_f64(o, d, tri)?;
+    Some(HitF64 { t, err, b1: (v / sum) as f32, b2: (w / sum) as f32 })
+}
+
+/// Of two faces a ray meets at one distance (within the f64 distances'
+/// error: a ray through the edge they share), whether it enters the solid
+/// by `a`: crossing a's plane, it moves to the side where `b` lies (the
+/// side of b's vertex farthest from that plane), which at a convex edge is
+/// the solid's; at a concave one neither face passes this test. Free of
+/// the winding (a shell wound inward has its fronts inside).
+pub(super) fn enters_by(a: &[Vec3A; 3], b: &[Vec3A; 3], d: Vec3A) -> bool {
+    let [p0, p1, p2] = a.map(|v| v.as_dvec3());
+    let n = (p1 - p0).cross(p2 - p0);
+    let far =
+        b.map(|w| n.dot(w.as_dvec3() - p0)).into_iter().fold(0.0f64, |f, s| if s.abs() > f.abs() { s } else { f });
+    far != 0.0 && (n.dot(d.as_dvec3()) > 0.0) == (far > 0.0)
 }
 
 /// Higham's gamma_n in f64.
@@ -291,7 +316,7 @@ const fn gamma64(n: u32) -> f64 {
 /// there, which is loose for short directions and not conservative for
 /// long ones).
 #[inline(always)]
-fn delta_t<L: Lanes>(x: &[L; 3], y: &[L; 3], z: &[L; 3], sz: L, e: &[L; 3], rcp: L) -> L {
+fn delta_t<L: Lanes>(x: &[L; 3], y: &[L; 3], z: &[L; 3], sz: L, e: &[L; 3], rcp: L) -> (L, L) {
     // (The one-triangle form took the max over (a, c), then b: the same but
     // for a NaN, and a NaN in x or y makes det NaN, failing the lane.)
     let max_abs = |v: &[L; 3]| v[0].abs().max(v[1].abs()).max(v[2].abs());
@@ -302,7 +327,7 @@ fn delta_t<L: Lanes>(x: &[L; 3], y: &[L; 3], z: &[L; 3], sz: L, e: &[L; 3], rcp:
     let delta_x = g(5) * (max_x + max_z);
     let delta_y = g(5) * (max_y + max_z);
     let delta_e = L::splat(2.0) * (g(2) * max_x * max_y + delta_y * max_x + delta_x * max_y);
-    L::splat(3.0) * (g(3) * max_e * max_zs + delta_e * max_zs + delta_zs * max_e) * rcp.abs()
+    (L::splat(3.0) * (g(3) * max_e * max_zs + delta_e * max_zs + delta_zs * max_e) * rcp.abs(), delta_e)
 }
 
 /// The edge functions `e` with those of the lanes in `redo` recomputed in

@@ -168,6 +168,7 @@ struct Hits {
     slot: i32x8,
     b1: f32x8,
     b2: f32x8,
+    edge_error: f32x8,
 }
 
 impl Accel {
@@ -182,7 +183,10 @@ impl Accel {
         let mut hits = Hits::new(t_max);
         let found = self.traverse8(&pre, &mut hits);
         let (t, slot, b1, b2) = (hits.t.to_array(), hits.slot.to_array(), hits.b1.to_array(), hits.b2.to_array());
-        std::array::from_fn(|l| (found >> l & 1 != 0).then(|| self.hit(t[l], slot[l] as u32, b1[l], b2[l])))
+        let edge_error = hits.edge_error.to_array();
+        std::array::from_fn(|l| {
+            (found >> l & 1 != 0).then(|| self.hit(t[l], slot[l] as u32, b1[l], b2[l], edge_error[l]))
+        })
     }
 
     /// The packet traversal: the closest hit of each lane's ray, into
@@ -232,7 +236,7 @@ impl Accel {
 
 impl Hits {
     fn new(t_max: [f32; LANES]) -> Self {
-        Self { t: f32x8::new(t_max), slot: i32x8::ZERO, b1: f32x8::ZERO, b2: f32x8::ZERO }
+        Self { t: f32x8::new(t_max), slot: i32x8::ZERO, b1: f32x8::ZERO, b2: f32x8::ZERO, edge_error: f32x8::ZERO }
     }
 }
 
@@ -269,6 +273,7 @@ impl PreparedPacket<'_> {
         hits.b1 = m.select(c.b1, hits.b1);
         hits.b2 = m.select(c.b2, hits.b2);
         hits.slot = i32x8::new(ones.map(|b| b as i32)).select(i32x8::splat(slot as i32), hits.slot);
+        hits.edge_error = m.select(c.edge_error, hits.edge_error);
         won
     }
 

@@ -578,15 +578,18 @@ impl Scene {
     #[inline(always)]
     fn interaction(&self, ray: &Ray, hit: &TriangleHit) -> Option<SurfaceInteraction> {
         let b = [1.0 - hit.b1 - hit.b2, hit.b1, hit.b2];
-        let (hit, b) = if near_edges(b, hit.margin) { self.hit_by_an_edge(ray)? } else { (*hit, b) };
+        let by_an_edge = near_edges(b, hit.margin.max(hit.edge_error));
+        let (hit, b) = if by_an_edge { self.hit_by_an_edge(ray)? } else { (*hit, b) };
         Some(self.interaction_at(ray, &hit, b))
     }
 
-    /// A hit within its triangle's margin of an edge (`triangle_point`),
-    /// where the f32 test can be wrong about a ray that clips or passes
-    /// a convex edge: it is traced again in f64 (`Accel::intersect_exact`),
-    /// and the point is kept off the edges. (Every ray `interaction` serves
-    /// was traced to infinity.)
+    /// A hit the f32 test may be wrong about (a barycentric within
+    /// `TriangleHit::edge_error` of 0: the ray passes that close to an
+    /// edge, where the test can find both faces of a convex edge the ray
+    /// passes, or first the one it would leave by), or within its
+    /// triangle's margin of an edge (`triangle_point`): traced again in f64
+    /// (`Accel::intersect_exact`), with the point kept off the edges.
+    /// (Every ray `interaction` serves was traced to infinity.)
     #[cold]
     #[inline(never)]
     fn hit_by_an_edge(&self, ray: &Ray) -> Option<(TriangleHit, [f32; 3])> {
