@@ -121,8 +121,8 @@ const MAX_EDGE_MARGIN: f64 = 1.0 / 64.0;
 /// or beyond it: a ray spawned there, offset along its own normal only,
 /// left through the neighbour at t = 0, and light inside a closed cube got
 /// out (a seed sweep, session 47; `a_closed_shell_keeps_its_light_in`).
-/// The move is at most margin times the triangle's size, and only for a
-/// fraction of about 3 margin of the points.
+/// The move is at most about twice the margin times the longest edge,
+/// and only for a fraction of about 6 margin of the points.
 #[inline(always)]
 pub fn triangle_point(v: &[Vec3A; 3], b: [f32; 3], margin: f32) -> (Vec3A, Vec3A, [f32; 3]) {
     let b = kept_off_edges(b, margin);

@@ -988,9 +988,14 @@ fn a_far_scene_renders_as_at_the_origin() {
 /// 63 (session 47) found bdpt's light paths leaving the cube with the
 /// point light (two pixels, up to 3.5e-3). Since session 47 every point
 /// on a triangle is kept a few error bounds off its edges
-/// (`geometry::triangle_point`; its own test, with a control, is
-/// `a_point_by_a_cubes_edge_stays_inside_it`). Shading normals let light
-/// through by design (docs/scene-format.md), so the shells are flat.
+/// (`geometry::triangle_point`; tested with a control by
+/// `a_point_by_a_cubes_edge_stays_inside_it`), and a camera ray that
+/// passes a convex edge within the f32 test's rounding, which it could
+/// meet first on the face it would leave by (2 of 150 renders of this
+/// cube under `path`), is traced again in f64 (`Accel::intersect_exact`;
+/// `a_ray_by_a_cubes_edge_meets_it_from_outside`). Shading normals let
+/// light through by design (docs/scene-format.md), so the shells are
+/// flat.
 #[test]
 fn a_closed_shell_keeps_its_light_in() {
     let point = r#""lights": [{"type": "point", "position": [0.5, 0.5, 0.5], "intensity": 1}]"#;
