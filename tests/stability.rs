@@ -1026,6 +1026,22 @@ fn a_closed_shell_keeps_its_light_in() {
     }
 }
 
+/// The cube [0.4, 0.6]^3, wound outward, in a room [lo, hi]^3 wound
+/// inward. A room that holds the origin keeps render space the file's.
+fn cube_in_a_room(lo: f32, hi: f32) -> Scene {
+    let text = format!(
+        r#"{{
+  "camera": {{"position": [0.5, 0.5, -1], "look_at": [0.5, 0.5, 0.5], "fov": 30, "width": 8, "height": 8}},
+  "materials": {{"white": {{"type": "diffuse", "reflectance": 0.7}}}},
+  "objects": [
+    {{"shape": {{"type": "cuboid", "min": [{lo}, {lo}, {lo}], "max": [{hi}, {hi}, {hi}], "inward": true}}, "material": "white"}},
+    {{"shape": {{"type": "cuboid", "min": [0.4, 0.4, 0.4], "max": [0.6, 0.6, 0.6]}}, "material": "white"}}
+  ]
+}}"#
+    );
+    parse_scene(&text, "cube", Path::new(".")).unwrap_or_else(|e| panic!("{e}")).build()
+}
+
 /// A point that rounding would put on its triangle's edge is kept off it
 /// (`geometry::triangle_point`). Rays from the centre of a cube to points
 /// of its four edges along z (in a room that holds the origin, so that
@@ -1037,15 +1053,7 @@ fn a_closed_shell_keeps_its_light_in() {
 /// closed cube (the seed sweep at offset 63, session 47).
 #[test]
 fn a_point_by_a_cubes_edge_stays_inside_it() {
-    let text = r#"{
-  "camera": {"position": [0.5, 0.5, -1], "look_at": [0.5, 0.5, 0.5], "fov": 30, "width": 8, "height": 8},
-  "materials": {"white": {"type": "diffuse", "reflectance": 0.7}},
-  "objects": [
-    {"shape": {"type": "cuboid", "min": [0, 0, 0], "max": [1, 1, 1], "inward": true}, "material": "white"},
-    {"shape": {"type": "cuboid", "min": [0.4, 0.4, 0.4], "max": [0.6, 0.6, 0.6]}, "material": "white"}
-  ]
-}"#;
-    let scene = parse_scene(text, "cube", Path::new(".")).unwrap_or_else(|e| panic!("{e}")).build();
+    let scene = cube_in_a_room(0.0, 1.0);
     let centre = Vec3A::splat(0.5);
     let out = |r: &Ray| scene.intersect(r).is_none_or(|h| h.t > 1e-3);
     let (mut escaped, mut escaped_without_margin, mut rays) = (0, 0, 0);
@@ -1092,15 +1100,7 @@ fn a_point_by_a_cubes_edge_stays_inside_it() {
 /// (session 47).
 #[test]
 fn a_ray_by_a_cubes_edge_meets_it_from_outside() {
-    let text = r#"{
-  "camera": {"position": [0.5, 0.5, -1], "look_at": [0.5, 0.5, 0.5], "fov": 30, "width": 8, "height": 8},
-  "materials": {"white": {"type": "diffuse", "reflectance": 0.7}},
-  "objects": [
-    {"shape": {"type": "cuboid", "min": [-3000, -3000, -3000], "max": [3000, 3000, 3000], "inward": true}, "material": "white"},
-    {"shape": {"type": "cuboid", "min": [0.4, 0.4, 0.4], "max": [0.6, 0.6, 0.6]}, "material": "white"}
-  ]
-}"#;
-    let scene = parse_scene(text, "cube", Path::new(".")).unwrap_or_else(|e| panic!("{e}")).build();
+    let scene = cube_in_a_room(-3000.0, 3000.0);
     let on_cube = |p: Vec3A| p.cmpge(Vec3A::splat(0.39)).all() && p.cmple(Vec3A::splat(0.61)).all();
     let mut inside_f32 = 0;
     for distance in [0.5f32, 10.0, 100.0, 1000.0] {
