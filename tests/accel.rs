@@ -215,6 +215,10 @@ fn bvh_matches_double_precision_reference() {
                 robust += 1;
                 let g = got.unwrap_or_else(|| panic!("{name} ray {i}: missed clear hit {k} at {t}"));
                 assert_eq!(g.prim as usize, k, "{name} ray {i}");
+                // The f64 traversal finds the same triangle, at its f64 t.
+                let x = accel.intersect_exact(&ray, t_max).unwrap_or_else(|| panic!("{name} ray {i}: f64 missed {k}"));
+                assert_eq!(x.prim as usize, k, "{name} ray {i}: f64");
+                assert!((x.t as f64 - t).abs() <= 1e-6 * t, "{name} ray {i}: f64 t {} vs {t}", x.t);
                 // f32 error scales with the coordinates (~1 here), not t.
                 let dl = ray.d.length() as f64;
                 assert!((g.t as f64 - t).abs() * dl <= 1e-5 * (1.0 + t * dl), "{name} ray {i}: {} vs {t}", g.t);
@@ -403,6 +407,10 @@ fn rays_through_shared_edges_and_vertices_never_slip_through() {
                 rays += 1;
                 assert!(accel.intersect(&ray, f32::INFINITY).is_some(), "{name}: ray {j} to {target} slipped through");
                 assert!(accel.occluded(&ray, f32::INFINITY), "{name}: ray {j}");
+                // So is the f64 traversal that hits near edges are traced
+                // again by (`intersect_exact`).
+                let exact = accel.intersect_exact(&ray, f32::INFINITY);
+                assert!(exact.is_some(), "{name}: ray {j} to {target} slipped through in f64");
                 if tris.len() < 100 || j % 64 == 0 {
                     naive_misses += (!naive_hits(&ray, &tris)) as usize;
                 }

@@ -277,7 +277,21 @@ pub(super) struct HitF64 {
 pub(super) fn hit_in_f64(o: Vec3A, d: Vec3A, tri: &[Vec3A; 3]) -> Option<HitF64> {
     let (od, dd) = (o.as_dvec3(), d.as_dvec3());
     let [a, b, c] = tri.map(|v| v.as_dvec3() - od);
-    let side = |p: DVec3, q: DVec3| p.cross(q).dot(dd);
+    // Within its rounding error (the bound of `ahead_t_in_f64`, on the
+    // terms' magnitudes) a product counts as 0, the ray on the edge: a ray
+    // through a vertex has every edge there exactly 0, and rounding gave
+    // them signs that could leave every triangle around it outside. The
+    // bound is symmetric in p and q, so neighbours still agree.
+    let side = |p: DVec3, q: DVec3| {
+        let (pa, qa) = (p.abs(), q.abs());
+        let m = DVec3::new(pa.y * qa.z + pa.z * qa.y, pa.z * qa.x + pa.x * qa.z, pa.x * qa.y + pa.y * qa.x);
+        let s = p.cross(q).dot(dd);
+        if s.abs() <= 2.0 * gamma64(9) * m.dot(dd.abs()) {
+            0.0
+        } else {
+            s
+        }
+    };
     // The weights of a, b and c.
     let (u, v, w) = (side(b, c), side(c, a), side(a, b));
     let inside = (u >= 0.0 && v >= 0.0 && w >= 0.0) || (u <= 0.0 && v <= 0.0 && w <= 0.0);
