@@ -239,11 +239,7 @@ impl Accel {
     /// `ray.skip` and their coplanar runs.
     #[inline(always)]
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<TriangleHit> {
-        let pre = PreparedRay::new(ray)?;
-        let mut t = t_max;
-        let skip = ray.skip.map(|slot| self.skip_run(slot));
-        let (slot, b1, b2, edge_error) = self.traverse::<false, false>(&pre, skip, &mut t)?;
-        Some(self.hit(t, slot, b1, b2, edge_error))
+        self.closest::<false>(ray, t_max)
     }
 
     /// `intersect` with every triangle of the visited leaves tested in f64
@@ -262,11 +258,18 @@ impl Accel {
     #[cold]
     #[inline(never)]
     pub fn intersect_exact(&self, ray: &Ray, t_max: f32) -> Option<TriangleHit> {
+        self.closest::<true>(ray, t_max)
+    }
+
+    /// The closest hit, by the f32 test or with `EXACT` in f64 (whose hits
+    /// carry `edge_error` 0).
+    #[inline(always)]
+    fn closest<const EXACT: bool>(&self, ray: &Ray, t_max: f32) -> Option<TriangleHit> {
         let pre = PreparedRay::new(ray)?;
         let mut t = t_max;
         let skip = ray.skip.map(|slot| self.skip_run(slot));
-        let (slot, b1, b2, _) = self.traverse::<false, true>(&pre, skip, &mut t)?;
-        Some(self.hit(t, slot, b1, b2, 0.0))
+        let (slot, b1, b2, edge_error) = self.traverse::<false, EXACT>(&pre, skip, &mut t)?;
+        Some(self.hit(t, slot, b1, b2, edge_error))
     }
 
     #[inline(always)]
@@ -378,8 +381,8 @@ impl Accel {
                 let child = nodes.0 + (hits & !(u32::MAX << slot)).count_ones();
                 let node = &self.bvh.nodes[child as usize];
                 // (f32 rounding of an f64 distance, and a box test with a
-                // slack, admit the hits at t_max; `TIE` more is to spare.)
-                let reach = if EXACT { *t_max * (1.0 + TIE) } else { *t_max };
+                // slack, admit the hits at t_max; `EXACT_REACH` more is to spare.)
+                let reach = if EXACT { *t_max * (1.0 + EXACT_REACH) } else { *t_max };
                 let hit_mask = intersect_node(node, r, reach, oct_inv4);
                 nodes = (node.child_base_idx, (hit_mask & 0xff00_0000) | node.imask as u32);
                 let base = node.primitive_base_idx;
@@ -565,7 +568,7 @@ pub fn intersect_triangle(ray: &Ray, tri: &[Vec3A; 3], t_max: f32) -> Option<(f3
 
 /// The margin, as a fraction of t_max, by which an exact traversal
 /// (`Accel::intersect_exact`) enters boxes beyond its best hit.
-const TIE: f32 = 1.0 / 65536.0;
+const EXACT_REACH: f32 = 1.0 / 65536.0;
 
 /// Four triangles of consecutive BVH slots, stored by coordinate, one per
 /// SIMD lane: `c[3 k + j]` holds coordinate k (x, y, z) of vertex j of each.

@@ -113,10 +113,10 @@ const EDGE_MARGIN: f64 = 16.0;
 const MAX_EDGE_MARGIN: f64 = 1.0 / 64.0;
 
 /// The point with barycentrics `b` (summing to 1) on the triangle `v`, with
-/// its rounding error bound (`barycentric_error`) and the barycentrics it
-/// was made from: `b` itself unless one is below `margin`
-/// (`edge_margin(v)`), when each is raised to at least `margin` and the
-/// three renormalised (each then at least margin / (1 + 3 margin)). Within
+/// its rounding error bound (`barycentric_error`), made from `b` itself
+/// unless one is below `margin` (`edge_margin(v)`), when each is raised to
+/// at least `margin` and the three renormalised (each then at least
+/// margin / (1 + 3 margin); `kept_off_edges`). Within
 /// rounding of an edge, a point could land exactly in a neighbour's plane,
 /// or beyond it: a ray spawned there, offset along its own normal only,
 /// left through the neighbour at t = 0, and light inside a closed cube got
@@ -124,9 +124,9 @@ const MAX_EDGE_MARGIN: f64 = 1.0 / 64.0;
 /// The move is at most about twice the margin times the longest edge,
 /// and only for a fraction of about 6 margin of the points.
 #[inline(always)]
-pub fn triangle_point(v: &[Vec3A; 3], b: [f32; 3], margin: f32) -> (Vec3A, Vec3A, [f32; 3]) {
+pub fn triangle_point(v: &[Vec3A; 3], b: [f32; 3], margin: f32) -> (Vec3A, Vec3A) {
     let b = kept_off_edges(b, margin);
-    (v[0] * b[0] + v[1] * b[1] + v[2] * b[2], barycentric_error(v, b[0], b[1], b[2]), b)
+    (v[0] * b[0] + v[1] * b[1] + v[2] * b[2], barycentric_error(v, b[0], b[1], b[2]))
 }
 
 /// `b`, or if one is below `margin` (`near_edges`), each raised to at
@@ -431,7 +431,8 @@ mod tests {
             [-1e-9, 1e-9, 1.0],
             [1.0, 0.0, 0.0],
         ] {
-            let (p, e, got) = triangle_point(&v, b, margin);
+            let (p, e) = triangle_point(&v, b, margin);
+            let got = kept_off_edges(b, margin);
             if b.iter().all(|&x| x >= margin) {
                 assert_eq!(got, b);
             } else {

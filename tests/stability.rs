@@ -1080,7 +1080,7 @@ fn a_point_by_a_cubes_edge_stays_inside_it() {
             escaped += out(&si.spawn_ray(across(si.ng))) as u32;
             // The control, on the f32 test's own hit and face.
             let n = (hit.v[1] - hit.v[0]).cross(hit.v[2] - hit.v[0]).normalize();
-            let (p, p_error, _) = triangle_point(&hit.v, [1.0 - hit.b1 - hit.b2, hit.b1, hit.b2], 0.0);
+            let (p, p_error) = triangle_point(&hit.v, [1.0 - hit.b1 - hit.b2, hit.b1, hit.b2], 0.0);
             let bare = SurfacePoint { p, p_error, n, slot: hit.slot };
             escaped_without_margin += out(&bare.spawn_ray(across(n))) as u32;
         }
