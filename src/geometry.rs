@@ -446,6 +446,36 @@ mod tests {
         }
     }
 
+    /// The margin is capped at `MAX_EDGE_MARGIN` where f32 cannot resolve
+    /// the triangle: a sliver (least altitude 1e-7 of a unit edge), a
+    /// degenerate one (collinear or repeated vertices: NaN or infinity
+    /// before the cap) and a 1e-3 triangle 1e5 from the origin. The same
+    /// sliver 1e-2 tall keeps its own margin, 16 E / h_min with E =
+    /// gamma(7) |(1, 1e-2, 0)| and h_min = 1e-2 (the area's twice over the
+    /// longest edge, 1), and the margin grows with the distance from the
+    /// origin.
+    #[test]
+    fn edge_margin_is_capped_where_f32_cannot_resolve_the_triangle() {
+        let cap = MAX_EDGE_MARGIN as f32;
+        let sliver = |h: f32| [Vec3A::ZERO, Vec3A::X, Vec3A::new(0.5, h, 0.0)];
+        let far = Vec3A::splat(1e5);
+        for (name, v) in [
+            ("sliver", sliver(1e-7)),
+            ("collinear", sliver(0.0)),
+            ("repeated vertex", [Vec3A::ZERO, Vec3A::X, Vec3A::X]),
+            ("point", [Vec3A::ONE; 3]),
+            ("tiny and far", [far, far + Vec3A::X * 1e-3, far + Vec3A::Y * 1e-3]),
+        ] {
+            assert_eq!(edge_margin(&v), cap, "{name}");
+        }
+        let tall = edge_margin(&sliver(1e-2)) as f64;
+        let want = 16.0 * gamma(7) as f64 * (1.0f64 + 1e-4).sqrt() / 1e-2;
+        assert!(want < MAX_EDGE_MARGIN && (tall / want - 1.0).abs() < 1e-5, "{tall} vs {want}");
+        let near = edge_margin(&[Vec3A::ZERO, Vec3A::X, Vec3A::Y]);
+        let moved = edge_margin(&[Vec3A::ONE, Vec3A::ONE + Vec3A::X, Vec3A::ONE + Vec3A::Y]);
+        assert!(moved > near, "{moved} vs {near}");
+    }
+
     #[test]
     fn offset_goes_to_w_side_by_the_error_bound() {
         let n = Vec3A::new(0.36, 0.48, 0.8);
