@@ -36,6 +36,7 @@
 //! triangles (zero area, non-finite vertices) are left out of the BVH: they can
 //! never be hit, and a renderer could not compute their normal anyway.
 
+mod exact;
 mod lanes;
 mod packet;
 
@@ -395,8 +396,9 @@ impl Accel {
                             let tri = self.blocks[block as usize].vertices(lane as usize);
                             let Some(h) = lanes::hit_in_f64(r.o, r.d, &tri) else { continue };
                             // At one distance within the error (a ray
-                            // through an edge), the face it enters by wins.
-                            let tie = (h.t - best_t64).abs() <= h.err + best_err;
+                            // through an edge), the face it enters by wins;
+                            // a first hit only has to lie before t_max.
+                            let tie = best.is_some() && (h.t - best_t64).abs() <= h.err + best_err;
                             if if tie { lanes::enters_by(&tri, &best_tri, r.d) } else { h.t < best_t64 } {
                                 (best_t64, best_err, best_tri, *t_max) = (h.t, h.err, tri, h.t as f32);
                                 best = Some((4 * block + lane, h.b1, h.b2, 0.0));

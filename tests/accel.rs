@@ -635,6 +635,57 @@ fn empty_and_bounds() {
     assert!(!accel.is_empty());
 }
 
+/// Both traversals find hits in (0, t_max) only: a triangle exactly at
+/// t_max is not hit, one just inside it is. (The f64 one once let a first
+/// hit within its error bound of t_max tie with t_max itself, and took it
+/// when the world's origin lay on the side the ray enters by: it returned
+/// t = t_max; found by a review, session 48.)
+#[test]
+fn hits_end_before_t_max() {
+    let accel = Accel::build(&[[Vec3A::new(0.0, 0.0, 1.0), Vec3A::new(1.0, 0.0, 1.0), Vec3A::new(0.0, 1.0, 1.0)]]);
+    let ray = Ray::new(Vec3A::new(0.25, 0.25, 2.0), Vec3A::NEG_Z);
+    assert!(accel.intersect(&ray, 1.0).is_none());
+    assert!(accel.intersect_exact(&ray, 1.0).is_none());
+    let beyond = 1.0f32.next_up();
+    assert_eq!(accel.intersect(&ray, beyond).map(|h| h.t), Some(1.0));
+    assert_eq!(accel.intersect_exact(&ray, beyond).map(|h| h.t), Some(1.0));
+}
+
+/// From 2e7 to 1e8 away, where the f64 products of a unit triangle's
+/// edges lie within their rounding bounds, the f64 traversal still meets
+/// the rays whose lines pass through its interior (every barycentric of
+/// the f64 crossing above 0.05) and misses those that pass clearly
+/// outside (one below -0.05). (Counting such products as 0, as it did
+/// until a review in session 48, lost rays through the interior.)
+#[test]
+fn exact_hits_hold_far_from_the_triangle() {
+    let tri = [Vec3A::ZERO, Vec3A::X, Vec3A::Y];
+    let accel = Accel::build(&[tri]);
+    let mut rng = Rand::new(48);
+    for distance in [2e7f32, 3e7, 1e8] {
+        let (mut inside, mut outside) = (0, 0);
+        while inside < 200 || outside < 200 {
+            let d = rng.unit();
+            if d.z > -0.3 {
+                continue;
+            }
+            let target = Vec3A::new(rng.range(-0.5, 1.5), rng.range(-0.5, 1.5), 0.0);
+            let ray = Ray::new(target - distance * d, d);
+            let (o, d64) = (ray.o.as_dvec3(), ray.d.as_dvec3());
+            let p = o - d64 * (o.z / d64.z);
+            let least = p.x.min(p.y).min(1.0 - p.x - p.y);
+            let hit = accel.intersect_exact(&ray, f32::INFINITY).is_some();
+            if least > 0.05 {
+                inside += 1;
+                assert!(hit, "from {distance}: a ray through {p} missed");
+            } else if least < -0.05 {
+                outside += 1;
+                assert!(!hit, "from {distance}: a ray by {p} hit");
+            }
+        }
+    }
+}
+
 /// Woop et al. 2013 sec. 3.3: when an f32 edge function rounds to exactly 0
 /// the ray is not necessarily on the edge; the double-precision recompute
 /// gives the true side, so of two triangles sharing the edge exactly one is
