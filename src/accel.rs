@@ -254,8 +254,9 @@ impl Accel {
     /// went on from the inside face of the shell, and light inside a
     /// closed cube reached camera paths (2 of 150 renders of
     /// `a_closed_shell_keeps_its_light_in`'s cube under `path`, session
-    /// 47). In f64 the side of each edge errs by ~1e-16 of its terms, and
-    /// so does the order. Slow (per triangle, not per block), and rare.
+    /// 47). In f64 the side of each edge is exact (where rounding could
+    /// decide it, by `exact::triple_product`); the order errs by ~1e-16 of
+    /// the distances' terms. Slow (per triangle, not per block), and rare.
     #[cold]
     #[inline(never)]
     pub fn intersect_exact(&self, ray: &Ray, t_max: f32) -> Option<TriangleHit> {

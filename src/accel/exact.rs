@@ -1,5 +1,5 @@
-//! The exact sign of a ray's scalar triple product with an edge,
-//! ((p - o) x (q - o)) . d, for f32 inputs, by expansion arithmetic
+//! A ray's scalar triple product with an edge, ((p - o) x (q - o)) . d,
+//! with its exact sign, for f32 inputs, by expansion arithmetic
 //! (Shewchuk 1997, "Adaptive Precision Floating-Point Arithmetic and Fast
 //! Robust Geometric Predicates", sections 2.2-2.6). `lanes::hit_in_f64`
 //! asks for it where its f64 product lies within that product's rounding
@@ -8,15 +8,17 @@
 
 use glam::Vec3A;
 
-/// The sign (-1, 0 or 1) of ((p - o) x (q - o)) . d, exactly. Expanding
+/// ((p - o) x (q - o)) . d, with its exact sign (0 only for an exact 0)
+/// and nearly its magnitude (`Expansion::estimate`). Expanding
 /// the cross product (o x o = 0) gives d . (p x q) + q . (o x d) - p . (o x d):
 /// 18 products of three f32s. The product of two f32s is exact in f64
 /// (48 bits of 53); times the third it is exactly two f64s (TwoProduct,
 /// by a fused multiply-add); the 36 are summed without error into a
-/// nonoverlapping expansion, whose largest component has the sum's sign.
+/// nonoverlapping expansion, whose largest component has the sum's sign
+/// and dominates the rest.
 /// No product of three f32s (2^-447 to 2^384 in magnitude, subnormals
 /// included) underflows or overflows in f64, so every step is exact.
-pub(super) fn triple_product_sign(o: Vec3A, d: Vec3A, p: Vec3A, q: Vec3A) -> f64 {
+pub(super) fn triple_product(o: Vec3A, d: Vec3A, p: Vec3A, q: Vec3A) -> f64 {
     let mut sum = Expansion::new();
     for (a, b, w, sign) in [(p, q, d, 1.0), (o, d, q, 1.0), (o, d, p, -1.0)] {
         // (a x b) . w, a cross component at a time.
@@ -27,12 +29,12 @@ pub(super) fn triple_product_sign(o: Vec3A, d: Vec3A, p: Vec3A, q: Vec3A) -> f64
             sum.add_product(-minus, sign * w);
         }
     }
-    sum.sign()
+    sum.estimate()
 }
 
 /// A nonoverlapping expansion (Shewchuk's section 2.2): f64 components by
 /// increasing magnitude, zeros left out, whose exact sum is its value;
-/// room for the 36 of `triple_product_sign` (each addition adds at most
+/// room for the 36 of `triple_product` (each addition adds at most
 /// one component).
 struct Expansion {
     c: [f64; 36],
@@ -46,7 +48,7 @@ impl Expansion {
 
     /// Adds x y exactly: its rounded value and the rounding error, which a
     /// fused multiply-add gives exactly (no underflow: see
-    /// `triple_product_sign`).
+    /// `triple_product`).
     fn add_product(&mut self, x: f64, y: f64) {
         let product = x * y;
         self.add(x.mul_add(y, -product));
@@ -73,10 +75,13 @@ impl Expansion {
         self.len = len;
     }
 
-    /// The value's sign: its largest component's (the others, below that
-    /// component's lowest bit, sum to less than it).
-    fn sign(&self) -> f64 {
-        self.c[..self.len].last().map_or(0.0, |c| c.signum())
+    /// The value: its sign exactly, the largest component's (the others
+    /// sum to less than that component's lowest bit), its magnitude that
+    /// of the components summed in f64 (Shewchuk's ESTIMATE); 0 for an
+    /// empty expansion, the one whose value is 0.
+    fn estimate(&self) -> f64 {
+        let terms = &self.c[..self.len];
+        terms.last().map_or(0.0, |top| terms.iter().sum::<f64>().abs().copysign(*top))
     }
 }
 
@@ -113,7 +118,7 @@ mod tests {
     /// own sign is wrong (or not 0 where the product is) for some of them,
     /// so the triples reach the rounding the expansion is there for.
     #[test]
-    fn triple_product_sign_is_exact() {
+    fn triple_product_has_the_exact_sign() {
         let mut u = Sampler::new(3, 0, 0);
         let grid = |x: f32| (x * 8192.0).round() / 8192.0;
         let point = |u: &mut Sampler| Vec3A::new(u.get1d(), u.get1d(), u.get1d()).map(|x| grid(500.0 * x - 250.0));
@@ -125,15 +130,16 @@ mod tests {
             let nudge = Vec3A::new(u.get1d(), u.get1d(), u.get1d()).map(|x| ((x * 5.0).floor() - 2.0) / 8192.0);
             let d = (p - o) * s + (q - o) * t + nudge;
             let want = exact_on_grid(o, d, p, q).signum() as f64;
-            assert_eq!(triple_product_sign(o, d, p, q), want, "o {o}, d {d}, p {p}, q {q}");
-            assert_eq!(triple_product_sign(o, d, q, p), -want);
+            let sign = |x: f64| if x == 0.0 { 0.0 } else { x.signum() };
+            assert_eq!(sign(triple_product(o, d, p, q)), want, "o {o}, d {d}, p {p}, q {q}");
+            assert_eq!(sign(triple_product(o, d, q, p)), -want);
             for (k, j) in [(2f32.powi(-100), 2f32.powi(-120)), (2f32.powi(60), 1.0)] {
-                assert_eq!(triple_product_sign(o * k, d * j, p * k, q * k), want, "scaled by {k}, {j}");
+                assert_eq!(sign(triple_product(o * k, d * j, p * k, q * k)), want, "scaled by {k}, {j}");
             }
             let [o64, d64, p64, q64] = [o, d, p, q].map(|v| v.as_dvec3());
             let naive = (p64 - o64).cross(q64 - o64).dot(d64);
             zeros += (want == 0.0) as u32;
-            f64_wrong += (if naive == 0.0 { 0.0 } else { naive.signum() } != want) as u32;
+            f64_wrong += (sign(naive) != want) as u32;
         }
         assert!(zeros > 100, "only {zeros} exact zeros");
         assert!(f64_wrong > 0, "the control: f64 got every sign right");

@@ -5,7 +5,7 @@
 //! the same operations in the same order, so a ray finds the same hits
 //! either way.
 
-use super::exact::triple_product_sign;
+use super::exact::triple_product;
 use crate::geometry::gamma;
 use glam::{DVec3, Vec3A, Vec4};
 use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Sub};
@@ -278,38 +278,35 @@ pub(super) struct HitF64 {
 pub(super) fn hit_in_f64(o: Vec3A, d: Vec3A, tri: &[Vec3A; 3]) -> Option<HitF64> {
     let dd = d.as_dvec3();
     let rel = tri.map(|v| v.as_dvec3() - o.as_dvec3());
-    // Edge (i, j)'s sign and its weight in the barycentrics. Within its
+    // Edge (i, j)'s product, the weight of the vertex opposite. Within its
     // rounding error (the bound of `ahead_t_in_f64`, on the terms'
-    // magnitudes) the product's sign is found exactly and its weight is
-    // 0: a sign from rounding could leave every triangle around a vertex
-    // outside a ray through it (44f9860), and a 0 for every product that
-    // small took a ray passing 1.6e-8 outside a cube's edge, from 1,000
-    // away, as through it: both faces met, the far one first (a review,
-    // session 48). The bound is symmetric in the two vertices, so
-    // neighbours take the same branch for the edge they share.
+    // magnitudes) it is found again with its exact sign: a sign from
+    // rounding could leave every triangle around a vertex outside a ray
+    // through it (44f9860), and a 0 for every product that small took a
+    // ray passing 1.6e-8 outside a cube's edge, from 1,000 away, as
+    // through it: both faces met, the far one first (a review, session
+    // 48). The bound is symmetric in the two vertices, so neighbours take
+    // the same branch for the edge they share.
     let side = |i: usize, j: usize| {
         let (p, q) = (rel[i], rel[j]);
         let (pa, qa) = (p.abs(), q.abs());
         let m = DVec3::new(pa.y * qa.z + pa.z * qa.y, pa.z * qa.x + pa.x * qa.z, pa.x * qa.y + pa.y * qa.x);
         let s = p.cross(q).dot(dd);
         if s.abs() > 2.0 * gamma64(9) * m.dot(dd.abs()) {
-            (s.signum(), s)
+            s
         } else {
-            (triple_product_sign(o, d, tri[i], tri[j]), 0.0)
+            triple_product(o, d, tri[i], tri[j])
         }
     };
-    // The signs and weights of vertices 0, 1 and 2.
-    let [(s0, w0), (s1, w1), (s2, w2)] = [side(1, 2), side(2, 0), side(0, 1)];
-    let inside = (s0 >= 0.0 && s1 >= 0.0 && s2 >= 0.0) || (s0 <= 0.0 && s1 <= 0.0 && s2 <= 0.0);
-    // (All three 0: the ray lies in the triangle's plane.)
-    if !inside || (s0 == 0.0 && s1 == 0.0 && s2 == 0.0) {
+    // The weights of vertices 0, 1 and 2; all 0 for a ray in the plane.
+    let (u, v, w) = (side(1, 2), side(2, 0), side(0, 1));
+    let inside = (u >= 0.0 && v >= 0.0 && w >= 0.0) || (u <= 0.0 && v <= 0.0 && w <= 0.0);
+    let sum = u + v + w;
+    if !inside || sum == 0.0 {
         return None;
     }
     let (t, err) = ahead_t_in_f64(o, d, tri)?;
-    // Every weight 0: the triangle is within rounding of the ray all
-    // round, and its centroid is as near as f64 can tell.
-    let sum = w0 + w1 + w2;
-    let (b1, b2) = if sum == 0.0 { (1.0 / 3.0, 1.0 / 3.0) } else { ((w1 / sum) as f32, (w2 / sum) as f32) };
+    let (b1, b2) = ((v / sum) as f32, (w / sum) as f32);
     Some(HitF64 { t, err, b1, b2 })
 }
 
