@@ -449,7 +449,8 @@ mod tests {
     /// The margin is capped at `MAX_EDGE_MARGIN` where f32 cannot resolve
     /// the triangle: a sliver (least altitude 1e-7 of a unit edge), a
     /// degenerate one (collinear or repeated vertices: NaN or infinity
-    /// before the cap) and a 1e-3 triangle 1e5 from the origin. The same
+    /// before the cap) and a triangle of legs 0.1 at (1e5, 1e5, 1e5), where
+    /// f32's spacing is 0.0078 (margin ~16 before the cap). The same
     /// sliver 1e-2 tall keeps its own margin, 16 E / h_min with E =
     /// gamma(7) |(1, 1e-2, 0)| and h_min = 1e-2 (the area's twice over the
     /// longest edge, 1), and the margin grows with the distance from the
@@ -459,12 +460,14 @@ mod tests {
         let cap = MAX_EDGE_MARGIN as f32;
         let sliver = |h: f32| [Vec3A::ZERO, Vec3A::X, Vec3A::new(0.5, h, 0.0)];
         let far = Vec3A::splat(1e5);
+        let tiny_and_far = [far, far + Vec3A::X * 0.1, far + Vec3A::Y * 0.1];
+        assert!((tiny_and_far[1] - far).cross(tiny_and_far[2] - far).length() > 0.0);
         for (name, v) in [
             ("sliver", sliver(1e-7)),
             ("collinear", sliver(0.0)),
             ("repeated vertex", [Vec3A::ZERO, Vec3A::X, Vec3A::X]),
             ("point", [Vec3A::ONE; 3]),
-            ("tiny and far", [far, far + Vec3A::X * 1e-3, far + Vec3A::Y * 1e-3]),
+            ("tiny and far", tiny_and_far),
         ] {
             assert_eq!(edge_margin(&v), cap, "{name}");
         }

@@ -200,24 +200,45 @@ pub fn check_threads(threads: usize) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Starts a pool thread once the one before it has started. A thread's
-/// start maps its stack in the spawning thread, then its signal stack in
-/// itself (std's stack-overflow handler), and a failure there aborts the
-/// process. Spawned all at once, threads not yet started could find that
-/// the spawner had mapped the rest of an address-space limit for later
-/// stacks: `--threads 1024` under `ulimit -v` aborted for 21 of 237 limits
-/// from 1.30 to 1.56 GB (a seed sweep's `threads_the_process_cannot_start_are_an_error`,
-/// session 48). One at a time, only a stack that leaves less than its
-/// thread's signal stack needs does: 1 of the 237.
+/// Starts a pool thread once the one before it has started, with room
+/// left for its signal stack. A thread's start maps its stack in the
+/// spawning thread, then its signal stack in itself (std's stack-overflow
+/// handler), and a failure there aborts the process. Spawned all at once,
+/// threads not yet started could find the rest of an address-space limit
+/// taken by later threads' stacks: `--threads 1024` under `ulimit -v`
+/// aborted for 21 of 237 limits from 1.30 to 1.56 GB (a seed sweep's
+/// `threads_the_process_cannot_start_are_an_error`, session 48). One at a
+/// time, a stack that left less than the signal stack needs still did,
+/// at fixed limits (2 of the 237, one of them in 20 runs of 20): so
+/// `HEADROOM` is held while the stack is mapped and freed before the
+/// thread maps its signal stack. With it, 1 run of 1,443 over such limits
+/// (two scenes) did not end with the error, and that one did not again.
 fn spawn_when_the_last_has_started(thread: rayon::ThreadBuilder) -> std::io::Result<()> {
+    let mut headroom = Vec::<u8>::new();
+    headroom.try_reserve_exact(HEADROOM).map_err(|_| std::io::Error::from(std::io::ErrorKind::OutOfMemory))?;
+    let mut builder = std::thread::Builder::new();
+    if let Some(name) = thread.name() {
+        builder = builder.name(name.to_owned());
+    }
+    if let Some(size) = thread.stack_size() {
+        builder = builder.stack_size(size);
+    }
     let (started, wait) = std::sync::mpsc::channel();
-    std::thread::Builder::new().spawn(move || {
+    let spawned = builder.spawn(move || {
         let _ = started.send(());
         thread.run()
-    })?;
+    });
+    drop(headroom);
+    spawned?;
     let _ = wait.recv();
     Ok(())
 }
+
+/// Address space held while a pool thread's stack is mapped, for its
+/// signal stack (a few pages) and more. Above glibc's largest dynamic mmap
+/// threshold (32 MiB on 64-bit), so malloc maps it apart and free unmaps
+/// it, whatever was allocated before; its pages are never touched.
+const HEADROOM: usize = 33 << 20;
 
 fn thread_pool(opts: &RenderOptions) -> ThreadPool {
     rayon::ThreadPoolBuilder::new()

@@ -635,11 +635,12 @@ fn empty_and_bounds() {
     assert!(!accel.is_empty());
 }
 
-/// Both traversals find hits in (0, t_max) only: a triangle exactly at
-/// t_max is not hit, one just inside it is. (The f64 one once let a first
-/// hit within its error bound of t_max tie with t_max itself, and took it
-/// when the world's origin lay on the side the ray enters by: it returned
-/// t = t_max; found by a review, session 48.)
+/// Both traversals leave a triangle exactly at t_max unhit, and find it
+/// when t_max is one ulp further. (The f64 one once let a first hit
+/// within its error bound of t_max tie with the placeholder it starts
+/// from, t_max and a triangle with every vertex at the origin, and took
+/// it when `enters_by` passed against that: it returned t = t_max; found
+/// by a review, session 48.)
 #[test]
 fn hits_end_before_t_max() {
     let accel = Accel::build(&[[Vec3A::new(0.0, 0.0, 1.0), Vec3A::new(1.0, 0.0, 1.0), Vec3A::new(0.0, 1.0, 1.0)]]);

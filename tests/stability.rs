@@ -1095,16 +1095,17 @@ fn a_point_by_a_cubes_edge_stays_inside_it() {
 /// enter by the face z = 0.6 and would leave by y = 0.6, aimed at points
 /// of that edge moved off it by -8..8 ulps along (y + z), from 0.5, 10,
 /// 100 and 1000 away (the f32 test's rounding grows with the distance).
-/// From far away the origin's rounding scatters the rays by up to ~3e-5,
-/// so only those whose line passes within 1e-7 of the edge (in f64, at
-/// the plane y = 0.6) are counted, 20,000 from each distance. The
+/// Only rays whose line passes within 1e-7 of the edge (in f64, at the
+/// plane y = 0.6) are counted, 20,000 from each distance: from 0.5 and 10
+/// away that keeps the targets within about an ulp of the edge, from 100
+/// and 1,000 away the origin's rounding (up to ~3e-5) decides. The
 /// control: the f32 test alone (`Accel::intersect`) meets thousands of
 /// them first on a back face, which had a path go on inside the shell
 /// (session 47). A review (session 48) found the band where the f64
 /// retrace then counted an edge's product within its rounding bound as 0
 /// (a miss by 4e-12 to 1e-8 from 1,000 away): 517 of these rays (515 from
-/// 1,000 away, 2 from 100), and the one it gave, met the cube first on a
-/// back face.
+/// 1,000 away, 2 from 100), and the review's own ray, met the cube first
+/// on a back face.
 #[test]
 fn a_ray_by_a_cubes_edge_meets_it_from_outside() {
     let scene = cube_in_a_room(-3000.0, 3000.0);

@@ -77,11 +77,16 @@ impl Expansion {
 
     /// The value: its sign exactly, the largest component's (the others
     /// sum to less than that component's lowest bit), its magnitude that
-    /// of the components summed in f64 (Shewchuk's ESTIMATE); 0 for an
-    /// empty expansion, the one whose value is 0.
+    /// of the components summed in f64 (Shewchuk's ESTIMATE), or the
+    /// largest component's where that sum rounds to 0 (the others just
+    /// short of it and opposite, in theory); 0 for an empty expansion, the
+    /// one whose value is 0.
     fn estimate(&self) -> f64 {
         let terms = &self.c[..self.len];
-        terms.last().map_or(0.0, |top| terms.iter().sum::<f64>().abs().copysign(*top))
+        terms.last().map_or(0.0, |&top| match terms.iter().sum::<f64>() {
+            0.0 => top,
+            sum => sum.abs().copysign(top),
+        })
     }
 }
 
