@@ -44,8 +44,7 @@ impl AreaLight {
     #[inline(always)]
     fn sample_point(&self, u: Vec2) -> (Vec3A, Vec3A) {
         let (b0, b1) = uniform_triangle(u);
-        let (p, p_error) = triangle_point(&self.v, [b0, b1, 1.0 - b0 - b1], self.margin);
-        (p, p_error)
+        triangle_point(&self.v, [b0, b1, 1.0 - b0 - b1], self.margin)
     }
 
     /// Whether a point of the light with normal `n` emits in direction `w`:

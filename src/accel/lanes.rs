@@ -247,12 +247,9 @@ pub(super) fn near_t_in_f64(o: Vec3A, d: Vec3A, tri: &[Vec3A; 3]) -> Option<f32>
 fn ahead_t_in_f64(o: Vec3A, d: Vec3A, tri: &[Vec3A; 3]) -> Option<(f64, f64)> {
     let [p0, p1, p2] = tri.map(|v| v.as_dvec3());
     let (a, b, v, d) = (p1 - p0, p2 - p0, p0 - o.as_dvec3(), d.as_dvec3());
-    let (aa, ba) = (a.abs(), b.abs());
-    let m = DVec3::new(aa.y * ba.z + aa.z * ba.y, aa.z * ba.x + aa.x * ba.z, aa.x * ba.y + aa.y * ba.x);
-    let n = a.cross(b);
+    let (n, m) = (a.cross(b), abs_cross(a, b));
     let (num, den) = (n.dot(v), n.dot(d));
-    let bound = |w: DVec3| 2.0 * gamma64(9) * m.dot(w.abs());
-    let (sign, bv, bd) = (den.signum(), bound(v), bound(d));
+    let (sign, bv, bd) = (den.signum(), rounding_bound(m, v), rounding_bound(m, d));
     let t = num / den;
     let err = t.abs() * (bv / (num.abs() - bv) + bd / (den.abs() - bd) + 2.0 * f64::EPSILON);
     (den.abs() > bd && num * sign > bv && t as f32 > 0.0).then_some((t, err))
@@ -289,10 +286,8 @@ pub(super) fn hit_in_f64(o: Vec3A, d: Vec3A, tri: &[Vec3A; 3]) -> Option<HitF64>
     // the same branch for the edge they share.
     let side = |i: usize, j: usize| {
         let (p, q) = (rel[i], rel[j]);
-        let (pa, qa) = (p.abs(), q.abs());
-        let m = DVec3::new(pa.y * qa.z + pa.z * qa.y, pa.z * qa.x + pa.x * qa.z, pa.x * qa.y + pa.y * qa.x);
         let s = p.cross(q).dot(dd);
-        if s.abs() > 2.0 * gamma64(9) * m.dot(dd.abs()) {
+        if s.abs() > rounding_bound(abs_cross(p, q), dd) {
             s
         } else {
             triple_product(o, d, tri[i], tri[j])
@@ -322,6 +317,20 @@ pub(super) fn enters_by(a: &[Vec3A; 3], b: &[Vec3A; 3], d: Vec3A) -> bool {
     let far =
         b.map(|w| n.dot(w.as_dvec3() - p0)).into_iter().fold(0.0f64, |f, s| if s.abs() > f.abs() { s } else { f });
     far != 0.0 && (n.dot(d.as_dvec3()) > 0.0) == (far > 0.0)
+}
+
+/// M = |p| x |q| taken term by term (|p_y q_z| + |p_z q_y|, ...): the
+/// magnitude of the terms of p x q (`near_t_in_f64`'s error bound).
+fn abs_cross(p: DVec3, q: DVec3) -> DVec3 {
+    let (pa, qa) = (p.abs(), q.abs());
+    DVec3::new(pa.y * qa.z + pa.z * qa.y, pa.z * qa.x + pa.x * qa.z, pa.x * qa.y + pa.y * qa.x)
+}
+
+/// The bound of `near_t_in_f64` on the rounding error of (p x q) . w
+/// computed in f64 from f32 inputs, M = `abs_cross(p, q)`: twice
+/// gamma_9 M . |w|.
+fn rounding_bound(m: DVec3, w: DVec3) -> f64 {
+    2.0 * gamma64(9) * m.dot(w.abs())
 }
 
 /// Higham's gamma_n in f64.
