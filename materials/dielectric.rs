@@ -8,11 +8,11 @@
 //! - Rough: Walter, Marschner, Li & Torrance 2007, "Microfacet Models for
 //!   Refraction through Rough Surfaces": reflection eq. 20, transmission
 //!   eq. 21, generalised half vector eq. 16, Jacobians eqs. 14 and 17, with
-//!   the Trowbridge-Reitz distribution, height-correlated G2 and visible-normal
-//!   sampling of `microfacet`. The design follows pbrt-v4's `DielectricBxDF`
-//!   (§9.7): a visible normal is drawn, then reflection or refraction about it
-//!   with probability R(wo.wm) or T(wo.wm); microfacets back-facing wo or wi
-//!   are discarded (the chi+ factors of Walter's G1; pbrt-v4's test).
+//!   the Trowbridge-Reitz distribution, G2 (for both lobes, as pbrt-v4)
+//!   and visible-normal sampling of `microfacet`. The design follows
+//!   pbrt-v4's `DielectricBxDF` (§9.7): a visible normal is drawn, then
+//!   reflection or refraction about it with probability R(wo.wm) or
+//!   T(wo.wm); microfacets back-facing wo or wi are discarded (the chi+ factors of Walter's G1; pbrt-v4's test).
 //! - `eta` is the IOR of the inside (the side the normal points away from)
 //!   relative to the outside; wo inside means the relative index is 1/eta.
 //! - Transport mode (Veach 1997 §5.2): in `Radiance` mode transmission is

@@ -7,7 +7,11 @@
 //! - Heitz 2014, "Understanding the Masking-Shadowing Function in
 //!   Microfacet-Based BRDFs": D (eq. 85, anisotropic), Lambda (eq. 86),
 //!   G1 = 1 / (1 + Lambda) (eq. 43), height-correlated
-//!   G2 = 1 / (1 + Lambda(wo) + Lambda(wi)) (eq. 99), and the visible normal
+//!   G2 = 1 / (1 + Lambda(wo) + Lambda(wi)) (eq. 99; exact for reflection,
+//!   and used for transmission too, as pbrt-v4's `DielectricBxDF` uses it:
+//!   the height-correlated form of a transmitted pair is the smaller
+//!   B(1 + Lambda(wo), 1 + Lambda(wi)), a Beta function, most so at grazing
+//!   angles), and the visible normal
 //!   distribution D_wo(wm) = G1(wo) max(0, wo.wm) D(wm) / cos theta_o (eq. 38).
 //! - Visible normals are sampled with Dupuy & Benyoub 2023, "Sampling Visible
 //!   GGX Normals with Spherical Caps" (HPG; listing 3): stretch the view to
@@ -118,7 +122,9 @@ impl TrowbridgeReitz {
         1.0 / (1.0 + self.Lambda(w))
     }
 
-    /// Height-correlated masking-shadowing (Heitz 2014 eq. 99).
+    /// Height-correlated masking-shadowing (Heitz 2014 eq. 99), for a
+    /// reflected pair; dielectrics use it for a transmitted pair as well
+    /// (see the module's doc).
     #[inline]
     pub fn G2(&self, wo: Vec3A, wi: Vec3A) -> f32 {
         1.0 / (1.0 + self.Lambda(wo) + self.Lambda(wi))
