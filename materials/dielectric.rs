@@ -12,7 +12,8 @@
 //!   and visible-normal sampling of `microfacet`. The design follows
 //!   pbrt-v4's `DielectricBxDF` (§9.7): a visible normal is drawn, then
 //!   reflection or refraction about it with probability R(wo.wm) or
-//!   T(wo.wm); microfacets back-facing wo or wi are discarded (the chi+ factors of Walter's G1; pbrt-v4's test).
+//!   T(wo.wm); microfacets back-facing wo or wi are discarded (the chi+
+//!   factors of Walter's G1; pbrt-v4's test).
 //! - `eta` is the IOR of the inside (the side the normal points away from)
 //!   relative to the outside; wo inside means the relative index is 1/eta.
 //! - Transport mode (Veach 1997 §5.2): in `Radiance` mode transmission is
