@@ -361,7 +361,7 @@ fn point_area_and_environment_lights_together() {
 /// here every path crosses once, so an estimator passing the wrong
 /// transport mode (radiance walks in importance mode, or the reverse) would
 /// be off by eta^2 = 2.25 against the others. Path, BDPT and light tracing
-/// agree. (A BTDF whose two modes are swapped for every caller keeps the
+/// agree, and each scaled by 1.1 does not. (A BTDF whose two modes are swapped for every caller keeps the
 /// estimators in agreement, each wrong by eta^2 the same way: that is
 /// bsdf_props's `rough_transmission_eta2_only_in_radiance_mode` to catch.)
 /// Premise control: with the interface turned over (camera and floor in
@@ -375,10 +375,20 @@ fn agreement_across_one_rough_glass_interface() {
     let path = stats("path", 32, false, 60);
     let mut failures = Vec::new();
     for (name, spp, base) in [("bdpt", 32, 160), ("light", 32, 260)] {
-        let c = Verdict::versus(&stats(name, spp, false, base), &path, 2);
+        let st = stats(name, spp, false, base);
+        let c = Verdict::versus(&st, &path, 2);
         eprintln!("one interface: {name} vs path: {c}");
         if !c.passed() {
             failures.push(format!("{name}: {c}"));
+        }
+        // The power to see a 10 % difference (an audit, session 49: the
+        // test had only the premise control below). At 5 % the worst |z|
+        // was ~5, below the threshold, and the control failed by the
+        // chi-square alone (p ~2e-5).
+        let c = Verdict::versus(&st.scaled(1.1), &path, 2);
+        eprintln!("one interface: {name} x1.1 vs path (control): {c}");
+        if c.passed() {
+            failures.push(format!("control {name} x1.1 passed: {c}"));
         }
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
