@@ -36,7 +36,9 @@
 //!
 //! `--strategies DIR` (src/render.rs `render_with_strategies`) records each
 //! strategy's weighted and unweighted contribution for per-(s, t) images
-//! (Veach fig. 10.4); without it the recording costs one branch.
+//! (Veach fig. 10.4), for paths of up to `--strategies-max-length` bounces
+//! (8), longer ones together (src/strategies.rs); without it the recording
+//! costs one branch.
 //!
 //! | parameter | type   | default | meaning                                     |
 //! |-----------|--------|---------|---------------------------------------------|

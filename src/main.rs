@@ -14,7 +14,7 @@ use prism::render_state::{Identity, Provenance, RenderState, SceneFingerprint};
 use prism::sampling::MisHeuristic;
 use prism::scene::{load_scene, RenderDefaults, Scene};
 use prism::stats::{check_pass_memory, pixel_mean_variance, render_pass_films};
-use prism::strategies::{is_strategy_image, StrategyImages};
+use prism::strategies::{self, is_strategy_image, StrategyImages, DEFAULT_MAX_LENGTH};
 use serde::Serialize;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
@@ -174,6 +174,11 @@ struct RenderArgs {
     /// sidecar; an earlier render's other strategy images there are removed.
     #[arg(long, value_name = "DIR")]
     strategies: Option<PathBuf>,
+    /// With --strategies: the longest paths, in bounces (s + t - 2), whose
+    /// strategies get images of their own; longer ones share one weighted
+    /// image, longer_paths_weighted.exr [default: 8]
+    #[arg(long, value_name = "N", requires = "strategies")]
+    strategies_max_length: Option<u32>,
     /// Render K independent passes of --spp samples (seeds seed, seed+1, ...):
     /// --out gets their mean, OUT.var.exr the per-pixel sample variance of
     /// one pass (divide by K for the variance of the mean).
@@ -323,7 +328,7 @@ fn reference_command(a: ReferenceArgs) -> Result<()> {
     ensure_exr("--out", &a.out)?;
     check_no_stale_state(&a.out, "")?;
     check_new_outputs(
-        &[("the scene", &a.scene)],
+        &scene_inputs(&a.scene, &builder.inputs),
         &[("--out", &a.out), ("its sidecar", &a.out.with_extension("json"))],
     )?;
     let file = SceneFingerprint::read(&a.scene)?;
@@ -435,7 +440,7 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
         }
         builder.set_resolution(w, h).map_err(|e| anyhow!("--width, --height: {e}"))?;
     }
-    check_render_outputs(a)?;
+    check_render_outputs(a, &builder.inputs)?;
     let file = SceneFingerprint::read(&a.scene)?;
     let scene = builder.build();
     let identity = Identity {
@@ -448,14 +453,20 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
         max_depth,
         mis: mis.name().to_string(),
     };
+    if a.strategies.is_some() {
+        let max_length = a.strategies_max_length.unwrap_or(DEFAULT_MAX_LENGTH);
+        strategies::check_memory(identity.width, identity.height, max_length)
+            .map_err(|e| anyhow!("--strategies-max-length: {e}"))?;
+    }
     let opts = RenderOptions { seed, threads: a.threads, progress: !a.quiet };
     Ok(Setup { scene, integrator, identity, spp, opts })
 }
 
 /// The files a render will write, checked before it starts: their
 /// extensions, no interrupted render's state or checkpoint replaced, none
-/// of them the scene, the checkpoint it resumes or a strategy's image.
-fn check_render_outputs(a: &RenderArgs) -> Result<()> {
+/// of them the scene, a file it reads (`files`), the checkpoint it resumes
+/// or a strategy's image.
+fn check_render_outputs(a: &RenderArgs, files: &[PathBuf]) -> Result<()> {
     ensure_exr("--out", &a.out)?;
     if let Some(png) = &a.png {
         output::ensure_extension("--png", png, "png")?;
@@ -473,7 +484,7 @@ fn check_render_outputs(a: &RenderArgs) -> Result<()> {
     }
     let outputs = render_outputs(a);
     let outputs: Vec<(&str, &Path)> = outputs.iter().map(|(r, p)| (*r, p.as_path())).collect();
-    check_new_outputs(&[("the scene", &a.scene)], &outputs)?;
+    check_new_outputs(&scene_inputs(&a.scene, files), &outputs)?;
     if let Some(resume) = &a.resume {
         // It may be replaced only by its own successor, once it is read:
         // the checkpoint or the state file.
@@ -525,6 +536,13 @@ fn writes_state(a: &RenderArgs) -> bool {
     a.sample_range.is_some() || a.resume.is_some()
 }
 
+/// The scene file and the files it reads (`SceneBuilder::inputs`), as
+/// inputs no output may replace.
+fn scene_inputs<'a>(scene: &'a Path, files: &'a [PathBuf]) -> Vec<(&'static str, &'a Path)> {
+    let files = files.iter().map(|f| ("a file the scene reads", f.as_path()));
+    std::iter::once(("the scene", scene)).chain(files).collect()
+}
+
 /// Before anything is rendered: every output writable (its directory
 /// exists, it is not a directory), none replacing an input or another, and
 /// the JSON ones (the sidecars) replacing no JSON file but a sidecar.
@@ -548,7 +566,7 @@ fn render_command(a: RenderArgs) -> Result<()> {
     let mut out = Outputs::default();
     let (image, mut sidecar, stats) = match (a.passes, &a.strategies) {
         (Some(k), _) => render_pass_mode(&a, &s, k, &mut out)?,
-        (None, Some(dir)) => render_strategies(&s, dir, &mut out)?,
+        (None, Some(dir)) => render_strategies(&s, dir, a.strategies_max_length, &mut out)?,
         (None, None) => render_samples(&a, &s, &mut out)?,
     };
     let (w, h) = (s.identity.width, s.identity.height);
@@ -685,9 +703,15 @@ fn remove_stale_strategy_images(dir: &Path, written: &[String]) -> Result<()> {
 }
 
 /// --strategies: the image plus one image per BDPT strategy.
-fn render_strategies(s: &Setup, dir: &Path, out: &mut Outputs) -> Result<(Vec<[f32; 3]>, Sidecar, RenderStats)> {
+fn render_strategies(
+    s: &Setup,
+    dir: &Path,
+    max_length: Option<u32>,
+    out: &mut Outputs,
+) -> Result<(Vec<[f32; 3]>, Sidecar, RenderStats)> {
     let mut film = Film::new(s.identity.width, s.identity.height);
-    let mut images = StrategyImages::new(film.width, film.height);
+    let max_length = max_length.unwrap_or(DEFAULT_MAX_LENGTH);
+    let mut images = StrategyImages::new(film.width, film.height, max_length);
     let stats = render_with_strategies(&s.scene, s.integrator.as_ref(), &s.opts, &mut film, 0..s.spp, &mut images);
     let names = images.stage_exrs(dir, out)?;
     let mut sidecar = Sidecar::new(s.identity.clone(), film.spp, std::slice::from_ref(&(0..s.spp)), film.dropped);

@@ -121,16 +121,20 @@ impl Mesh {
     /// Applies `m` to positions, and its inverse transpose to normals
     /// (renormalised). A mirroring transform (det < 0) also reverses the
     /// winding, so the geometric normal keeps pointing the way the
-    /// transformed shading normals do.
+    /// transformed shading normals do. The determinant and the inverse in
+    /// f64: in f32 a scale of 1e-16 on every axis has a determinant of
+    /// -0 when mirrored, which kept the winding (an audit, session 49),
+    /// and no inverse.
     pub fn transform(&mut self, m: Affine3A) {
         for p in &mut self.positions {
             *p = m.transform_point3a(*p);
         }
-        let normal_matrix = m.matrix3.inverse().transpose();
+        let m3 = m.matrix3.as_dmat3();
+        let normal_matrix = m3.inverse().transpose();
         for n in &mut self.normals {
-            *n = (normal_matrix * *n).normalize();
+            *n = (normal_matrix * n.as_dvec3()).normalize().as_vec3a();
         }
-        if m.matrix3.determinant() < 0.0 {
+        if m3.determinant() < 0.0 {
             self.reverse_winding();
         }
     }
@@ -271,6 +275,24 @@ mod tests {
                 assert!((*n - g).length() < 1e-4, "{n} vs {g}");
             }
             assert_eq!(m.indices[0] != base.indices[0], mirror);
+        }
+    }
+
+    /// A mirroring scale too small for an f32 determinant (1e-48 is below
+    /// f32's least subnormal) still reverses the winding and keeps the
+    /// normals: a sphere of radius 1e12 scaled by (-1e-16, 1e-16, 1e-16)
+    /// is a sphere of radius 1e-4, wound outward.
+    #[test]
+    fn tiny_mirroring_scales_reverse_the_winding() {
+        let base = Mesh::sphere(Vec3A::ZERO, 1e12, 1, true);
+        let scale = Vec3A::new(-1e-16, 1e-16, 1e-16);
+        assert_eq!(Mat3::from_diagonal(scale.into()).determinant(), 0.0, "the premise: f32 cannot hold it");
+        let mut m = base.clone();
+        m.transform(Affine3A::from_mat3(Mat3::from_diagonal(scale.into())));
+        assert_outward(&m, Vec3A::ZERO);
+        for (p, n) in m.positions.iter().zip(&m.normals) {
+            assert!((p.length() / 1e-4 - 1.0).abs() < 1e-5, "{p}");
+            assert!((n.dot(p.normalize()) - 1.0).abs() < 1e-5, "{n} at {p}");
         }
     }
 

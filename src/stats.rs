@@ -47,7 +47,7 @@ pub fn check_pass_memory(k: u32, width: u32, height: u32) -> Result<(), String> 
 }
 
 /// Physical memory in bytes (Linux's /proc/meminfo; None elsewhere).
-fn physical_memory() -> Option<u64> {
+pub(crate) fn physical_memory() -> Option<u64> {
     let info = std::fs::read_to_string("/proc/meminfo").ok()?;
     let kb = info.lines().find_map(|l| l.strip_prefix("MemTotal:"))?.trim().strip_suffix("kB")?.trim().parse::<u64>();
     kb.ok().map(|kb| kb * 1024)

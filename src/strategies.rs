@@ -28,10 +28,19 @@ pub struct StrategyRecord {
 }
 
 /// Sums of weighted and unweighted contributions per pixel, for every
-/// strategy (s, t) that contributed (linear sRGB, like `Film`).
+/// strategy (s, t) of paths of at most `max_length` bounces (s + t - 2)
+/// that contributed, and for all longer ones together under `LONGER`
+/// (linear sRGB, like `Film`). The weighted images still add up to the
+/// image. Without the bound, every length a render's paths reach had its
+/// own images: ~2,300 strategies (110 MB, 4,600 files) for the white room
+/// at 32x32, and past this machine's memory at 512x512 (an audit, session
+/// 49).
 pub struct StrategyImages {
     pub width: u32,
     pub height: u32,
+    /// The longest paths, in bounces, whose strategies have images of
+    /// their own.
+    pub max_length: u32,
     /// Samples per pixel accumulated so far.
     pub spp: u64,
     /// (s, t) -> [weighted, unweighted] sums per pixel.
@@ -40,14 +49,34 @@ pub struct StrategyImages {
     pub dropped: DroppedSamples,
 }
 
+/// The key in `StrategyImages::sums` of the strategies of paths longer
+/// than `max_length`, together; only their weighted sum is written (the sum
+/// of their unweighted estimates estimates nothing).
+pub const LONGER: (u32, u32) = (u32::MAX, u32::MAX);
+
+/// The file of `LONGER`'s weighted image.
+const LONGER_FILE: &str = "longer_paths_weighted.exr";
+
+/// What `--strategies-max-length` is when not given.
+pub const DEFAULT_MAX_LENGTH: u32 = 8;
+
 impl StrategyImages {
-    pub fn new(width: u32, height: u32) -> Self {
-        Self { width, height, spp: 0, sums: BTreeMap::new(), dropped: DroppedSamples::default() }
+    pub fn new(width: u32, height: u32, max_length: u32) -> Self {
+        Self { width, height, max_length, spp: 0, sums: BTreeMap::new(), dropped: DroppedSamples::default() }
+    }
+
+    /// Bytes the images of paths up to `max_length` bounces can take at
+    /// `width` x `height`: (K + 1)(K + 4) / 2 strategies (K + 2 of length
+    /// K), and `LONGER`, each two images of three f64 a pixel.
+    pub fn most_bytes(width: u32, height: u32, max_length: u32) -> f64 {
+        let k = max_length as f64;
+        ((k + 1.0) * (k + 4.0) / 2.0 + 1.0) * 48.0 * width as f64 * height as f64
     }
 
     fn buffers(&mut self, s: u32, t: u32) -> &mut [Vec<[f64; 3]>; 2] {
         let n = (self.width * self.height) as usize;
-        self.sums.entry((s, t)).or_insert_with(|| [vec![[0.0; 3]; n], vec![[0.0; 3]; n]])
+        let key = if (s + t).saturating_sub(2) > self.max_length { LONGER } else { (s, t) };
+        self.sums.entry(key).or_insert_with(|| [vec![[0.0; 3]; n], vec![[0.0; 3]; n]])
     }
 
     /// The image of strategy (s, t), weighted (its share of the final image)
@@ -60,12 +89,16 @@ impl StrategyImages {
     }
 
     /// Stages `s<s>_t<t>_weighted.exr` and `s<s>_t<t>_unweighted.exr` for
-    /// every strategy in `dir`; returns their file names.
+    /// every strategy in `dir`, and `longer_paths_weighted.exr` for
+    /// `LONGER`; returns their file names.
     pub fn stage_exrs(&self, dir: &Path, out: &mut Outputs) -> anyhow::Result<Vec<String>> {
         let mut names = Vec::new();
         for &(s, t) in self.sums.keys() {
             for (weighted, name) in [(true, "weighted"), (false, "unweighted")] {
-                let file = format!("s{s}_t{t}_{name}.exr");
+                if (s, t) == LONGER && !weighted {
+                    continue;
+                }
+                let file = if (s, t) == LONGER { LONGER_FILE.to_string() } else { format!("s{s}_t{t}_{name}.exr") };
                 let image = self.image(s, t, weighted).expect("strategy present");
                 out.exr(&dir.join(&file), self.width, self.height, &image)?;
                 names.push(file);
@@ -75,8 +108,27 @@ impl StrategyImages {
     }
 }
 
+/// Refuses per-strategy images of paths up to `max_length` bounces at
+/// `width` x `height` that this machine could not hold
+/// (`StrategyImages::most_bytes`).
+pub fn check_memory(width: u32, height: u32, max_length: u32) -> Result<(), String> {
+    let bytes = StrategyImages::most_bytes(width, height, max_length);
+    match crate::stats::physical_memory() {
+        Some(total) if bytes > total as f64 => Err(format!(
+            "the images of every strategy of paths up to {max_length} bounces at {width}x{height} may take {:.1} GB, \
+             more than this machine's {:.1} GB (choose fewer bounces or pixels)",
+            bytes / 1e9,
+            total as f64 / 1e9
+        )),
+        _ => Ok(()),
+    }
+}
+
 /// Whether `name` is a file name `StrategyImages::stage_exrs` writes.
 pub fn is_strategy_image(name: &str) -> bool {
+    if name == LONGER_FILE {
+        return true;
+    }
     let number = |x: &str| !x.is_empty() && x.bytes().all(|b| b.is_ascii_digit());
     let Some(rest) = name.strip_prefix('s') else { return false };
     let Some((s, rest)) = rest.split_once("_t") else { return false };

@@ -26,7 +26,7 @@ use prism::scene::{Scene, SceneBuilder};
 use prism::shapes::Mesh;
 use prism::spectrum::{SampledWavelengths, Spectrum};
 use prism::stats::{rel_mse, render_passes, ColourStats, Image, Verdict};
-use prism::strategies::StrategyImages;
+use prism::strategies::{StrategyImages, DEFAULT_MAX_LENGTH, LONGER};
 use scenes::{bdpt, integrator, scene, seed, srgb_of, stats, versus};
 use std::sync::OnceLock;
 
@@ -864,7 +864,7 @@ fn unweighted_strategies_agree_length_by_length() {
     let passes: Vec<StrategyImages> = (0..K as u64)
         .map(|i| {
             let mut film = Film::new(32, 32);
-            let mut strategies = StrategyImages::new(32, 32);
+            let mut strategies = StrategyImages::new(32, 32, DEFAULT_MAX_LENGTH);
             let opts = RenderOptions { seed: seed(40 + i), threads: 0, progress: false };
             render_with_strategies(&s, bd.as_ref(), &opts, &mut film, 0..SPP, &mut strategies);
             strategies
@@ -909,7 +909,9 @@ fn strategy_images_sum_to_the_image() {
     let s = scene("cornell-box.json", 24, 20);
     let bd = bdpt(MisHeuristic::Power);
     let mut film = Film::new(24, 20);
-    let mut strategies = StrategyImages::new(24, 20);
+    // Paths of up to 3 bounces have images per strategy, longer ones one
+    // together (`LONGER`), which the sum takes too.
+    let mut strategies = StrategyImages::new(24, 20, 3);
     let opts = RenderOptions { seed: seed(3), threads: 0, progress: false };
     render_with_strategies(&s, bd.as_ref(), &opts, &mut film, 0..8, &mut strategies);
     let image = film.image();
@@ -919,9 +921,12 @@ fn strategy_images_sum_to_the_image() {
             && keys.contains(&(1, 1))
             && keys.contains(&(1, 2))
             && keys.contains(&(2, 1))
-            && keys.contains(&(2, 2)),
+            && keys.contains(&(2, 2))
+            && keys.contains(&(2, 3))
+            && keys.contains(&LONGER),
         "{keys:?}"
     );
+    assert!(keys.iter().all(|&(s, t)| (s, t) == LONGER || s + t <= 5), "{keys:?}");
     let total = |skip: Option<(u32, u32)>| -> Image {
         let mut sum = vec![[0f32; 3]; image.len()];
         for &(st, tt) in keys.iter().filter(|&&k| Some(k) != skip) {
@@ -945,7 +950,7 @@ fn strategy_images_sum_to_the_image() {
     // Negative control: leaving out one of the main strategies is detected
     // ((0, 2) is small: the (1, 1) strategy takes most of the directly seen
     // light).
-    for k in [(0, 2), (1, 1), (1, 2), (2, 1), (2, 2)] {
+    for k in [(0, 2), (1, 1), (1, 2), (2, 1), (2, 2), LONGER] {
         let w = worst(&total(Some(k)));
         eprintln!("without {k:?}: worst relative difference {w:.2e}");
         assert!(w > 1e-5, "dropping {k:?} went unnoticed ({w})");
@@ -980,7 +985,7 @@ fn bdpt_and_light_are_bit_identical_across_thread_counts() {
             .iter()
             .map(|&threads| {
                 let mut film = Film::new(40, 24);
-                let mut st = StrategyImages::new(40, 24);
+                let mut st = StrategyImages::new(40, 24, DEFAULT_MAX_LENGTH);
                 let opts = RenderOptions { seed: seed(7), threads, progress: false };
                 if name == "bdpt" {
                     render_with_strategies(&s, it.as_ref(), &opts, &mut film, 0..3, &mut st);

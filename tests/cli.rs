@@ -309,6 +309,47 @@ fn outputs_never_replace_the_scene_or_each_other() {
     let _ = std::fs::remove_dir_all(&d);
 }
 
+/// No output may replace a file the scene reads beside itself: a glTF
+/// file's texture, rendered directly or included by a JSON scene (`--png
+/// albedo.png` overwrote the texture; an audit, session 49). The control:
+/// the same render with another PNG name succeeds.
+#[test]
+fn outputs_never_replace_a_file_the_scene_reads() {
+    let d = temp_dir("collide-inputs");
+    let path = |name: &str| d.join(name).display().to_string();
+    let box_gltf = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/gltf/BoxTextured.gltf");
+    let mut gltf: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(box_gltf).unwrap()).unwrap();
+    gltf["images"][0]["uri"] = "albedo.png".into();
+    write(&d, "box.gltf", &gltf.to_string());
+    image::RgbImage::from_pixel(2, 2, image::Rgb([200, 100, 50])).save(d.join("albedo.png")).unwrap();
+    let texture = std::fs::read(d.join("albedo.png")).unwrap();
+    let including = r#"{
+  "camera": {"position": [0, 1, 4], "look_at": [0, 0, 0], "fov": 40, "width": 8, "height": 8},
+  "materials": {},
+  "objects": [{"shape": {"type": "gltf", "file": "box.gltf"}}],
+  "lights": [{"type": "point", "position": [2, 4, 3], "intensity": 20}]
+}"#;
+    write(&d, "s.json", including);
+    for scene in ["box.gltf", "s.json"] {
+        let render = |png: &str| {
+            let (scene, out, png) = (path(scene), path("a.exr"), path(png));
+            prism(&[
+                "render", &scene, "--spp", "1", "--width", "8", "--height", "8", "--quiet", "--out", &out, "--png",
+                &png,
+            ])
+        };
+        let o = render("albedo.png");
+        let e = stderr(&o);
+        assert!(!o.status.success() && e.contains("would replace a file the scene reads"), "{scene}: {e}");
+        assert_eq!(std::fs::read(d.join("albedo.png")).unwrap(), texture, "{scene}: the texture changed");
+        assert!(!d.join("a.exr").exists(), "{scene}: an output was written");
+        let o = render("preview.png");
+        assert!(o.status.success(), "the control, {scene}: {}", stderr(&o));
+        std::fs::remove_file(d.join("a.exr")).unwrap();
+    }
+    let _ = std::fs::remove_dir_all(&d);
+}
+
 /// Sums rendered by two builds (another target, say a node without AVX2,
 /// or another commit) still add up, into an unbiased image that neither
 /// may render: merge and resume say so, and the sidecar lists both (it
@@ -489,9 +530,9 @@ fn strategy_images_are_one_renders() {
     let d = temp_dir("strategies");
     let scene = "scenes/cornell-box.json";
     let (dir, out) = (d.join("st").display().to_string(), d.join("img.exr").display().to_string());
-    let render = |depth: &str| {
+    let render_with = |depth: &str, extra: &[&str]| {
         let args = ["render", scene, "--integrator", "bdpt", "--max-depth", depth, "--spp", "1", "--quiet"];
-        let args = [&args[..], &["--width", "8", "--height", "8"]].concat();
+        let args = [&args[..], &["--width", "8", "--height", "8"], extra].concat();
         let o = prism(&[&args[..], &["--strategies", &dir, "--out", &out]].concat());
         assert!(o.status.success(), "{}", stderr(&o));
         let sidecar: serde_json::Value =
@@ -509,6 +550,7 @@ fn strategy_images_are_one_renders() {
         assert_eq!(sidecar["strategy_records_dropped"]["infinite"], 0, "depth {depth}");
         listed
     };
+    let render = |depth: &str| render_with(depth, &[]);
     let deep = render("3");
     std::fs::write(d.join("st/notes.txt"), b"not ours").unwrap();
     let shallow = render("1");
@@ -525,6 +567,21 @@ fn strategy_images_are_one_renders() {
     let o = Command::new(env!("CARGO_BIN_EXE_prism")).args(args).current_dir(d.join("st")).output().unwrap();
     let e = stderr(&o);
     assert!(!o.status.success() && e.contains("is where --strategies writes a strategy's image"), "{e}");
+    // Paths longer than --strategies-max-length share one weighted image
+    // (an audit, session 49: every length had its own, without bound), and
+    // a bound whose images could not fit in memory is refused.
+    let bounded = render_with("1024", &["--strategies-max-length", "1"]);
+    let short = |n: &String| {
+        let numbers = n.split(|c: char| !c.is_ascii_digit()).filter(|x| !x.is_empty());
+        let st: Vec<u32> = numbers.map(|x| x.parse().unwrap()).collect();
+        n == "longer_paths_weighted.exr" || (st.len() == 2 && st[0] + st[1] <= 3)
+    };
+    assert!(bounded.contains(&"longer_paths_weighted.exr".to_string()) && bounded.iter().all(short), "{bounded:?}");
+    let args = ["render", &scene, "--integrator", "bdpt", "--strategies", &dir, "--out", &out, "--quiet"];
+    let o = prism(&[&args[..], &["--strategies-max-length", "4000000000"]].concat());
+    let e = stderr(&o);
+    assert!(!o.status.success() && e.contains("--strategies-max-length: the images of every strategy"), "{e}");
+    assert!(!e.contains("spp in"), "it rendered first: {e}");
     let _ = std::fs::remove_dir_all(&d);
 }
 

@@ -124,6 +124,7 @@ pub fn parse_gltf(bytes: &[u8], file: &str, dir: &Path) -> Result<GltfScene, Loa
         let d65 = spectrum::illuminant("D65").expect("D65 is tabulated");
         b.environment("default environment", d65.scale(DEFAULT_ENVIRONMENT));
     }
+    b.inputs.extend(imp.external_files());
     Ok(GltfScene { builder: b, messages: imp.messages })
 }
 
@@ -178,6 +179,8 @@ pub(super) fn include(
     for m in &imp.messages {
         eprintln!("{m}");
     }
+    b.inputs.push(path.to_path_buf());
+    b.inputs.extend(imp.external_files());
     Ok(())
 }
 
@@ -386,6 +389,20 @@ impl<'a> Importer<'a> {
             }
         }
         Ok(imp)
+    }
+
+    /// The files the glTF file's buffers and images name (`read_uri`).
+    fn external_files(&self) -> Vec<PathBuf> {
+        let buffers = self.doc.buffers().filter_map(|b| match b.source() {
+            gltf::buffer::Source::Uri(uri) => Some(uri),
+            gltf::buffer::Source::Bin => None,
+        });
+        let images = self.doc.images().filter_map(|i| match i.source() {
+            gltf::image::Source::Uri { uri, .. } => Some(uri),
+            gltf::image::Source::View { .. } => None,
+        });
+        let files = buffers.chain(images).filter(|uri| !uri.contains(':'));
+        files.map(|uri| self.dir.join(percent_decode(uri))).collect()
     }
 
     /// Bytes of a data URI or of a file relative to the glTF file.

@@ -1239,6 +1239,9 @@ fn objects(
             None => return Err(ctx.err(&path, "missing field `material`")),
         };
         let mut mesh = ctx.shape(&with(&path, "shape"), &o.shape)?;
+        if let ShapeSpec::Obj(obj) = &o.shape {
+            b.inputs.push(ctx.dir.join(&obj.file));
+        }
         if let Some(t) = &o.transform {
             mesh.transform(ctx.transform(&with(&path, "transform"), t)?);
         }

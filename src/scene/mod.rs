@@ -25,6 +25,7 @@ use crate::shapes::Mesh;
 use crate::spectrum::{SampledWavelengths, Spectrum};
 use glam::{DVec3, Vec3A};
 use std::cell::Cell;
+use std::path::PathBuf;
 
 thread_local! {
     /// Rays traced by this thread since the last `take_ray_count`.
@@ -336,6 +337,11 @@ pub struct SceneBuilder {
     pub defaults: RenderDefaults,
     /// The scene file's top-level `comment` (converge's report quotes it).
     pub comment: Option<String>,
+    /// The files the loaders read or name beside the scene file: meshes,
+    /// included glTF files, their buffers and images. A command's outputs
+    /// may not replace them (`--png albedo.png` overwrote a texture; an
+    /// audit, session 49).
+    pub inputs: Vec<PathBuf>,
 }
 
 impl SceneBuilder {
@@ -348,6 +354,7 @@ impl SceneBuilder {
             lights: Vec::new(),
             defaults: RenderDefaults::default(),
             comment: None,
+            inputs: Vec::new(),
         }
     }
 
@@ -728,10 +735,23 @@ impl Scene {
             self.emitters_on_surfaces(),
             self.point_lights_on_surfaces(),
             self.dim_emission(),
+            self.no_emission(),
         ]
         .into_iter()
         .flatten()
         .collect()
+    }
+
+    /// A warning if nothing emits at the wavelengths rendered (no light, or
+    /// every light of zero power, which `light_sampler` cannot choose from):
+    /// every estimator renders black. A JSON scene gets no default light
+    /// (docs/scene-format.md); a scene without one rendered black with no
+    /// word of why (an audit, session 49).
+    pub fn no_emission(&self) -> Option<String> {
+        self.light_sampler.is_none().then(|| {
+            "nothing in the scene emits light (no light or emitter, or every one of zero power): the image is black"
+                .to_string()
+        })
     }
 
     /// A warning if the scene's brightest emitter (its radiance at its
@@ -900,6 +920,27 @@ mod tests {
         assert!(!warns(&[(1e-17, false), (1e-17, true)]));
         assert!(!warns(&[(0.0, false)]));
         assert!(!warns(&[]));
+    }
+
+    /// A scene without a light, or whose lights all have zero power, is
+    /// warned of as black; one with a light of any power is not.
+    #[test]
+    fn a_scene_that_emits_nothing_is_warned_of() {
+        let warns = |lights: &[f32]| {
+            let camera = Camera::new(Vec3A::new(0.0, 0.0, -5.0), Vec3A::ZERO, Vec3A::Y, 40.0, 8, 8);
+            let mut b = SceneBuilder::new(camera);
+            let grey = b.material("grey", Bsdf::Diffuse(Diffuse::new(Spectrum::Constant(0.5))));
+            let quad = [Vec3A::ZERO, Vec3A::X, Vec3A::X + Vec3A::Y, Vec3A::Y];
+            for &value in lights {
+                b.mesh("lamp", Mesh::quad(quad), grey, Some((Spectrum::Constant(value), false)));
+            }
+            b.build().no_emission().is_some()
+        };
+        assert!(warns(&[]));
+        assert!(warns(&[0.0]));
+        assert!(warns(&[0.0, 0.0]));
+        assert!(!warns(&[1e-30]));
+        assert!(!warns(&[0.0, 1.0]));
     }
 
     /// Triangles whose normals f32 cannot hold are counted and warned of:
