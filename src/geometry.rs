@@ -1,6 +1,6 @@
 //! Rays, shading frames and robust ray-origin offsetting.
 
-use glam::Vec3A;
+use glam::{DVec3, Vec3A};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Ray {
@@ -81,79 +81,71 @@ pub fn barycentric_error(v: &[Vec3A; 3], b0: f32, b1: f32, b2: f32) -> Vec3A {
     ((v[0] * b0).abs() + (v[1] * b1).abs() + (v[2] * b2).abs()) * gamma(7)
 }
 
-/// How far from 0 (at least) `triangle_point` keeps a barycentric of the
-/// triangle `v`: `EDGE_MARGIN` (16) bounds of the rounding error of a point
-/// on it over its least altitude h_min = 2 area / longest edge. The bound
-/// is E = gamma(7) |(max_j |v_j.x|, max_j |v_j.y|, max_j |v_j.z|)|, which
-/// `barycentric_error` stays within for any barycentrics >= 0 summing to 1.
-/// A point with b_i >= margin / (1 + 3 margin) (what `triangle_point`
-/// leaves) lies at least 15.2 E from every edge's line, so where a
-/// neighbour's plane passes through an edge at an angle phi to this
-/// triangle's plane (a cube's face beside another: 90 degrees), the true
-/// point is at least 15.2 E sin(phi) from that plane and the rounded one
-/// at least 15.2 E sin(phi) - E, on its own triangle's side. A spawned ray
-/// moves it further by at most 1.5 E: the offset along the own normal, at
-/// most |n| |p_error| <= E, and one ulp a coordinate with the rounding of
-/// the sum, under 0.5 E. So for phi above 10 degrees its origin stays on
-/// the own side of the neighbour's plane (docs/performance-log.md,
-/// "Session 47"). At most `MAX_EDGE_MARGIN` (a sliver, or a triangle tiny
-/// against its distance from the origin, which f32 cannot resolve anyway).
-/// In f64, from the vertices as stored.
+/// The least barycentric of a point `triangle_point` leaves untouched:
+/// `EDGE_MARGIN` (16) bounds E of the rounding error of a point on the
+/// triangle `v` over its least altitude h_min = 2 area / longest edge, so
+/// that such a point lies at least 16 E from every edge's line. The bound
+/// is E = gamma(7) |(max_j |v_j.x|, max_j |v_j.y|, max_j |v_j.z|)|
+/// (`rounding_extent`), which `barycentric_error` stays within for any
+/// barycentrics >= 0 summing to 1. At most `MAX_EDGE_MARGIN` (a sliver, or
+/// a triangle tiny against its distance from the origin, which f32 cannot
+/// resolve anyway). In f64, from the vertices as stored.
+///
+/// Why 16 E: where a neighbour's plane passes through an edge at an angle
+/// phi to this triangle's plane (a cube's face beside another: 90
+/// degrees), a point 16 E from the edge is at least 16 E sin(phi) from
+/// that plane, and once rounded (a little under E, with the barycentrics'
+/// own rounding) at least 15 E sin(phi) - E, on its own triangle's side.
+/// A spawned ray moves it further by at most 1.5 E: the offset along the
+/// own normal, at most |n| |p_error| <= E, and one ulp a coordinate with
+/// the rounding of the sum, under 0.5 E. So for phi above 10 degrees its
+/// origin stays on the own side of the neighbour's plane
+/// (docs/performance-log.md, "Session 47").
 pub fn edge_margin(v: &[Vec3A; 3]) -> f32 {
     let [a, b, c] = v.map(|x| x.as_dvec3());
     let twice_area = (b - a).cross(c - a).length();
     let longest = (b - a).length().max((c - b).length()).max((a - c).length());
-    let e = gamma(7) as f64 * v[0].abs().max(v[1].abs()).max(v[2].abs()).as_dvec3().length();
     // A degenerate triangle (never hit nor sampled) gives NaN or infinity,
     // which `min` turns into the cap.
-    (EDGE_MARGIN * e * longest / twice_area).min(MAX_EDGE_MARGIN) as f32
+    (EDGE_MARGIN * rounding_extent(v) * longest / twice_area).min(MAX_EDGE_MARGIN) as f32
+}
+
+/// E of `edge_margin`, in f64.
+fn rounding_extent(v: &[Vec3A; 3]) -> f64 {
+    gamma(7) as f64 * v[0].abs().max(v[1].abs()).max(v[2].abs()).as_dvec3().length()
 }
 
 const EDGE_MARGIN: f64 = 16.0;
 const MAX_EDGE_MARGIN: f64 = 1.0 / 64.0;
 
-/// The point with barycentrics `b` (summing to 1) on the triangle `v`, and
-/// the point that rays leaving or reaching it use, with that point's
-/// rounding error bound (`barycentric_error`): `p` itself, unless a
-/// barycentric is below `margin` (`edge_margin(v)`), when the ray point is
-/// made from `b` with each raised to at least `margin` and the three
-/// renormalised (each then at least margin / (1 + 3 margin);
-/// `off_edges`). Within rounding of an edge, a point could land
+/// The point with barycentrics `b` (summing to 1) on the triangle `v`, with
+/// its rounding error bound (`barycentric_error`), made from `b` itself
+/// unless one is below `margin` (`edge_margin(v)`), when it is moved to
+/// the nearest point at least `EDGE_MARGIN` E from every edge's line
+/// (`kept_off_edges`). Within rounding of an edge, a point could land
 /// exactly in a neighbour's plane, or beyond it: a ray spawned there,
 /// offset along its own normal only, left through the neighbour at t = 0,
 /// and light inside a closed cube got out (a seed sweep, session 47;
-/// `a_closed_shell_keeps_its_light_in`). The move is at most about twice
-/// the margin times the longest edge, and only for a fraction of about 6
-/// margin of the points.
-///
-/// Only rays use the moved point. Estimators take `p`: it is where a
-/// sampler chose or a ray met the surface, so a light's points keep their
-/// density, 1 / area. Until session 49 the moved point stood for both, and
-/// on a sliver, whose margin is large, the points that moved along it made
-/// next-event estimation and light tracing 3 % wrong 5 mm from the end of
-/// a 1 cm x 1 m strip light 10 away from the origin (an audit;
-/// `light_points_keep_their_density_on_slivers`).
+/// `a_closed_shell_keeps_its_light_in`). The move is 16 E or less
+/// across an edge, more only within 16 E / sin(theta / 2) of a vertex of
+/// angle theta, and the light points and hits it moves are a fraction of
+/// about 16 E times the perimeter over the area.
 #[inline(always)]
-pub fn triangle_point(v: &[Vec3A; 3], b: [f32; 3], margin: f32) -> TrianglePoint {
-    let at = |b: [f32; 3]| v[0] * b[0] + v[1] * b[1] + v[2] * b[2];
-    let p = at(b);
-    if near_edges(b, margin) {
-        let kept = off_edges(b, margin);
-        TrianglePoint { p, origin: at(kept), origin_error: barycentric_error(v, kept[0], kept[1], kept[2]) }
-    } else {
-        TrianglePoint { p, origin: p, origin_error: barycentric_error(v, b[0], b[1], b[2]) }
-    }
+pub fn triangle_point(v: &[Vec3A; 3], b: [f32; 3], margin: f32) -> (Vec3A, Vec3A) {
+    let b = kept_off_edges(v, b, margin);
+    (v[0] * b[0] + v[1] * b[1] + v[2] * b[2], barycentric_error(v, b[0], b[1], b[2]))
 }
 
-/// A point on a triangle (`triangle_point`).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct TrianglePoint {
-    /// Where a sampler chose or a ray met the surface.
-    pub p: Vec3A,
-    /// The point rays leaving or reaching `p` use.
-    pub origin: Vec3A,
-    /// Bound on the rounding error of `origin` (`barycentric_error`).
-    pub origin_error: Vec3A,
+/// `b`, or if one is below `margin` (`near_edges`), the barycentrics of
+/// the nearest point at least `EDGE_MARGIN` E from every edge's line
+/// (`inset`).
+#[inline(always)]
+pub fn kept_off_edges(v: &[Vec3A; 3], b: [f32; 3], margin: f32) -> [f32; 3] {
+    if near_edges(b, margin) {
+        inset(v, b)
+    } else {
+        b
+    }
 }
 
 /// Whether a barycentric of `b` is below `margin` (a NaN is not). One
@@ -163,17 +155,83 @@ pub fn near_edges(b: [f32; 3], margin: f32) -> bool {
     Vec3A::from(b).cmplt(Vec3A::splat(margin)).any()
 }
 
-/// `b` with each raised to at least `margin` and the three renormalised
-/// (`triangle_point`). Inlined though rarely run: out of line (`#[cold]`,
-/// `#[inline(never)]`)
-/// the call, inside the walks' inlined loops, made a Cornell box `path`
-/// render 1.09x as long and a 1.3M-triangle one 1.07x for +1.3 % and
-/// +1.7 % instructions (ABBA; docs/performance-log.md, "Session 47").
+/// The barycentrics of the point nearest to `b`'s in the triangle `v`
+/// inset by d = `EDGE_MARGIN` E: every edge moved inwards by d, which is
+/// `v` scaled about its incentre I by 1 - k, k = d / r (r the inradius),
+/// and holds exactly the points with b_i >= k beta_i, beta_i = the side
+/// opposite vertex i over the perimeter (I's barycentrics). The nearest
+/// point is found in f64 (Ericson 2005, "Real-Time Collision Detection",
+/// 5.1.5, `ClosestPtPointTriangle`). So a point is moved across the edges
+/// it is too near, by at most d each, not along them: until session 49 the
+/// three barycentrics were raised to the margin and renormalised, which on
+/// a sliver (margin 7.3e-3 on a right triangle 1 cm by 1 m, 10 from the
+/// origin) slid points millimetres along it, and a light's points were no
+/// longer uniform: 5 mm below such a strip light next-event estimation and
+/// light tracing read 2.4 % low (an audit;
+/// `light_points_keep_their_density_on_slivers`). k is at most 1/32, so
+/// that every point with b_i >= `MAX_EDGE_MARGIN` is in the inset triangle
+/// (beta_i < 1/2), and `near_edges` at the margin misses none outside it.
+/// Inlined though rarely run and large: out of line (`#[cold]`,
+/// `#[inline(never)]`), the call inside the walks' inlined loops made the
+/// README's `path` render 1.08x as long (ABBA, 3 pairs: 1.220 against
+/// 1.135 s) for +0.33 % instructions, as session 47 found of the rule
+/// before it (docs/performance-log.md, "Session 47" and "Session 49").
 #[inline(always)]
-fn off_edges(b: [f32; 3], margin: f32) -> [f32; 3] {
-    let c = b.map(|x| x.max(margin));
-    let sum = c[0] + c[1] + c[2];
-    c.map(|x| x / sum)
+pub fn inset(v: &[Vec3A; 3], b: [f32; 3]) -> [f32; 3] {
+    let t = v.map(|x| x.as_dvec3());
+    let sides = [(t[2] - t[1]).length(), (t[0] - t[2]).length(), (t[1] - t[0]).length()];
+    let perimeter = sides[0] + sides[1] + sides[2];
+    let inradius = (t[1] - t[0]).cross(t[2] - t[0]).length() / perimeter;
+    let k = (EDGE_MARGIN * rounding_extent(v) / inradius).min(1.0 / 32.0);
+    if !(k >= 0.0 && perimeter > 0.0) {
+        // A degenerate triangle: never hit nor sampled.
+        return b;
+    }
+    let beta = sides.map(|s| s / perimeter);
+    let centre = t[0] * beta[0] + t[1] * beta[1] + t[2] * beta[2];
+    let inner = t.map(|x| centre + (x - centre) * (1.0 - k));
+    let p = t[0] * b[0] as f64 + t[1] * b[1] as f64 + t[2] * b[2] as f64;
+    let q = nearest_in_triangle(p, &inner);
+    [0, 1, 2].map(|i| (k * beta[i] + (1.0 - k) * q[i]) as f32)
+}
+
+/// The barycentrics of the point of the triangle `t` nearest to `p`, a
+/// point in its plane (Ericson 2005, 5.1.5: by the Voronoi regions of its
+/// vertices and edges).
+fn nearest_in_triangle(p: DVec3, [a, b, c]: &[DVec3; 3]) -> [f64; 3] {
+    let (ab, ac, ap) = (*b - *a, *c - *a, p - *a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return [1.0, 0.0, 0.0];
+    }
+    let bp = p - *b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return [0.0, 1.0, 0.0];
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = d1 / (d1 - d3);
+        return [1.0 - v, v, 0.0];
+    }
+    let cp = p - *c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return [0.0, 0.0, 1.0];
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = d2 / (d2 - d6);
+        return [1.0 - w, 0.0, w];
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return [0.0, 1.0 - w, w];
+    }
+    let denom = 1.0 / (va + vb + vc);
+    let (v, w) = (vb * denom, vc * denom);
+    [1.0 - v - w, v, w]
 }
 
 /// A point that rays leave from or arrive at: position, a bound on its
@@ -431,38 +489,71 @@ mod tests {
     }
 
     /// Points at least the margin from every edge are made exactly as
-    /// before (b unchanged); the others are moved to at least
-    /// margin / (1 + 3 margin), within one rounding, with barycentrics
-    /// that still sum to 1. The margin of a unit right triangle at the
-    /// origin is 16 E / h_min, E = gamma(7) sqrt(2), h_min = 1 / sqrt(2).
+    /// before (b unchanged); the others are moved to at least 15 E from
+    /// every edge's line (16 E less the rounding), across the edges they
+    /// are too near: by at most 16 E where they are near one edge, by at
+    /// most 16 E / sin(theta / 2) near a vertex of angle theta. On a unit
+    /// right triangle at the origin, whose margin is 16 E / h_min with
+    /// E = gamma(7) sqrt(2), h_min = 1 / sqrt(2), and on a sliver, the
+    /// strip light of `light_points_keep_their_density_on_slivers`, where
+    /// raising the barycentrics to the margin and renormalising them, the
+    /// rule before session 49, moves a point near the middle of a long edge
+    /// by 3.6 mm along it, 50 times 16 E (the control).
     #[test]
     fn triangle_points_keep_the_margin_from_every_edge() {
-        let v = [Vec3A::ZERO, Vec3A::X, Vec3A::Y];
-        let margin = edge_margin(&v);
+        let unit = [Vec3A::ZERO, Vec3A::X, Vec3A::Y];
+        let margin = edge_margin(&unit);
         let want = 16.0 * gamma(7) as f64 * 2f64.sqrt() * 2f64.sqrt();
         assert!((margin as f64 / want - 1.0).abs() < 1e-6, "{margin} vs {want}");
-        let floor = margin / (1.0 + 3.0 * margin) * (1.0 - f32::EPSILON);
-        for b in [
-            [0.2, 0.3, 0.5],
-            [margin, margin, 1.0 - 2.0 * margin],
-            [0.0, 0.5, 0.5],
-            [-1e-9, 1e-9, 1.0],
-            [1.0, 0.0, 0.0],
-        ] {
-            let TrianglePoint { p, origin, origin_error: e } = triangle_point(&v, b, margin);
-            let got = if near_edges(b, margin) { off_edges(b, margin) } else { b };
-            if b.iter().all(|&x| x >= margin) {
-                assert_eq!(got, b);
-            } else {
-                assert!(got.iter().all(|&x| x >= floor), "{b:?} -> {got:?}");
-                assert!((got.iter().sum::<f32>() - 1.0).abs() < 1e-6, "{got:?}");
+        let strip = [Vec3A::new(10.0, 0.0, 0.0), Vec3A::new(10.0, 0.01, 0.0), Vec3A::new(11.0, 0.0, 0.0)];
+        let at = |v: &[Vec3A; 3], b: [f32; 3]| (0..3).map(|i| v[i].as_dvec3() * b[i] as f64).sum::<DVec3>();
+        let line_distance = |p: DVec3, a: Vec3A, b: Vec3A| {
+            let (a, b) = (a.as_dvec3(), b.as_dvec3());
+            (p - a).cross(b - a).length() / (b - a).length()
+        };
+        for v in [unit, strip] {
+            let (margin, e) = (edge_margin(&v), rounding_extent(&v));
+            let t = v.map(|x| x.as_dvec3());
+            let angle = |i: usize| (t[(i + 1) % 3] - t[i]).angle_between(t[(i + 2) % 3] - t[i]);
+            let sharpest = angle(0).min(angle(1)).min(angle(2));
+            for b in [
+                [0.2, 0.3, 0.5],
+                [margin, margin, 1.0 - 2.0 * margin],
+                [0.0, 0.5, 0.5],
+                [0.5, 1e-9, 0.5],
+                [0.5, 0.5, 0.0],
+                [-1e-9, 1e-9, 1.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [1e-4, 1e-4, 1.0 - 2e-4],
+            ] {
+                let (p, err) = triangle_point(&v, b, margin);
+                let got = kept_off_edges(&v, b, margin);
+                assert_eq!(
+                    (p, err),
+                    (v[0] * got[0] + v[1] * got[1] + v[2] * got[2], barycentric_error(&v, got[0], got[1], got[2]))
+                );
+                if !near_edges(b, margin) {
+                    assert_eq!(got, b);
+                    continue;
+                }
+                let (q, moved) = (at(&v, got), (at(&v, got) - at(&v, b)).length());
+                let nearest = (0..3).map(|i| line_distance(q, v[(i + 1) % 3], v[(i + 2) % 3])).fold(f64::MAX, f64::min);
+                assert!(nearest >= 15.0 * e, "{b:?}: {:.2} E from an edge", nearest / e);
+                assert!(moved <= 16.0 * e / (sharpest / 2.0).sin() + e, "{b:?}: moved {:.1} E", moved / e);
+                // Near one edge, away from the vertices: across it only.
+                if b == [0.0, 0.5, 0.5] || b == [0.5, 1e-9, 0.5] || b == [0.5, 0.5, 0.0] {
+                    assert!(moved <= 16.0 * e + e, "{b:?}: moved {:.1} E", moved / e);
+                }
             }
-            assert_eq!(p, v[0] * b[0] + v[1] * b[1] + v[2] * b[2]);
-            assert_eq!(
-                (origin, e),
-                (v[0] * got[0] + v[1] * got[1] + v[2] * got[2], barycentric_error(&v, got[0], got[1], got[2]))
-            );
         }
+        // The control: the old rule's move near the middle of the strip's
+        // long edge.
+        let (b, m) = ([0.5f32, 1e-9, 0.5], edge_margin(&strip));
+        let c = b.map(|x| x.max(m));
+        let old = c.map(|x| x / (c[0] + c[1] + c[2]));
+        let slid = (at(&strip, old) - at(&strip, b)).length();
+        assert!(slid > 40.0 * 16.0 * rounding_extent(&strip), "the control: the old rule moved {slid:e}");
     }
 
     /// The margin is capped at `MAX_EDGE_MARGIN` where f32 cannot resolve

@@ -8,7 +8,7 @@
 //!
 //! Lights are an enum matched in the hot loop; one light per emissive triangle.
 
-use crate::geometry::{triangle_point, Frame, Ray, Shadow, SurfacePoint, TrianglePoint, NO_TRIANGLE};
+use crate::geometry::{triangle_point, Frame, Ray, Shadow, SurfacePoint, NO_TRIANGLE};
 use crate::sampling::{cosine_hemisphere, uniform_sphere, uniform_triangle, UNIFORM_SPHERE_PDF};
 use crate::spectrum::{SampledSpectrum, SampledWavelengths, Spectrum};
 use glam::{Vec2, Vec3A};
@@ -39,11 +39,10 @@ pub struct AreaLight {
 }
 
 impl AreaLight {
-    /// A uniform point on the triangle (Heitz 2019), and the point rays
-    /// leaving or reaching it use, kept off the edges by the triangle's
-    /// margin, with that one's rounding error bound (`triangle_point`).
+    /// A uniform point on the triangle (Heitz 2019), kept off its edges
+    /// by its margin (`triangle_point`), with its rounding error bound.
     #[inline(always)]
-    fn sample_point(&self, u: Vec2) -> TrianglePoint {
+    fn sample_point(&self, u: Vec2) -> (Vec3A, Vec3A) {
         let (b0, b1) = uniform_triangle(u);
         triangle_point(&self.v, [b0, b1, 1.0 - b0 - b1], self.margin)
     }
@@ -88,12 +87,9 @@ pub struct LightLiSample {
     pub l: SampledSpectrum,
     /// Unit direction from the reference point towards the light.
     pub wi: Vec3A,
-    /// The point on the light (`wi`, `pdf_w` and `l` are for it).
     pub p: Vec3A,
-    /// The point the shadow ray ends at (`triangle_point`).
-    pub origin: Vec3A,
-    /// Bound on the rounding error of `origin` (`barycentric_error`).
-    pub origin_error: Vec3A,
+    /// Bound on the rounding error of `p` (`barycentric_error`).
+    pub p_error: Vec3A,
     /// Surface normal at the light point (zero for point/environment).
     pub n: Vec3A,
     /// Solid-angle density at the reference point (for a delta light: 1).
@@ -105,20 +101,17 @@ pub struct LightLiSample {
 impl LightLiSample {
     #[inline]
     pub fn point(&self) -> SurfacePoint {
-        SurfacePoint { p: self.origin, p_error: self.origin_error, n: self.n, slot: self.slot }
+        SurfacePoint { p: self.p, p_error: self.p_error, n: self.n, slot: self.slot }
     }
 }
 
 /// An emitted ray for light subpaths.
 #[derive(Clone, Copy, Debug)]
 pub struct LightLeSample {
-    /// The ray's origin is the point on the emitter that was sampled.
+    /// The ray's origin is on the emitter (not offset).
     pub ray: Ray,
-    /// The point the ray leaves from, not yet offset off the emitter
-    /// (`triangle_point`).
-    pub origin: Vec3A,
-    /// Bound on the rounding error of `origin` (`barycentric_error`).
-    pub origin_error: Vec3A,
+    /// Bound on the rounding error of the origin (`barycentric_error`).
+    pub p_error: Vec3A,
     pub n: Vec3A,
     pub l: SampledSpectrum,
     /// Area density of the origin (delta lights: 1).
@@ -191,7 +184,7 @@ impl Light {
     pub fn sample_li(&self, p_ref: Vec3A, u: Vec2, lambda: &SampledWavelengths) -> Option<LightLiSample> {
         match self {
             Light::Area(a) => {
-                let TrianglePoint { p, origin, origin_error } = a.sample_point(u);
+                let (p, p_error) = a.sample_point(u);
                 let to = p - p_ref;
                 let dist2 = to.length_squared();
                 if dist2 == 0.0 {
@@ -205,7 +198,7 @@ impl Light {
                     return None;
                 }
                 let pdf_w = dist2 / (cos_l.abs() * a.area);
-                Some(LightLiSample { l, wi, p, origin, origin_error, n: a.n, pdf_w, slot: a.slot })
+                Some(LightLiSample { l, wi, p, p_error, n: a.n, pdf_w, slot: a.slot })
             }
             Light::Point(pl) => {
                 let to = pl.p - p_ref;
@@ -219,8 +212,7 @@ impl Light {
                     l,
                     wi: to / dist,
                     p: pl.p,
-                    origin: pl.p,
-                    origin_error: Vec3A::ZERO,
+                    p_error: Vec3A::ZERO,
                     n: Vec3A::ZERO,
                     pdf_w: 1.0,
                     slot: NO_TRIANGLE,
@@ -228,13 +220,11 @@ impl Light {
             }
             Light::Environment(e) => {
                 let wi = uniform_sphere(u);
-                let p = p_ref + wi * (2.0 * e.radius);
                 Some(LightLiSample {
                     l: e.le.sample(lambda),
                     wi,
-                    p,
-                    origin: p,
-                    origin_error: Vec3A::ZERO,
+                    p: p_ref + wi * (2.0 * e.radius),
+                    p_error: Vec3A::ZERO,
                     n: Vec3A::ZERO,
                     pdf_w: UNIFORM_SPHERE_PDF,
                     slot: NO_TRIANGLE,
@@ -265,7 +255,7 @@ impl Light {
     pub fn sample_le(&self, u1: Vec2, u2: Vec2, lambda: &SampledWavelengths) -> Option<LightLeSample> {
         match self {
             Light::Area(a) => {
-                let TrianglePoint { p, origin, origin_error } = a.sample_point(u1);
+                let (p, p_error) = a.sample_point(u1);
                 let (u, flip) = if a.two_sided {
                     // Pick a side with the first coordinate, then remap it.
                     if u2.x < 0.5 {
@@ -286,8 +276,7 @@ impl Light {
                 }
                 Some(LightLeSample {
                     ray: Ray::new(p, d),
-                    origin,
-                    origin_error,
+                    p_error,
                     n,
                     l: a.le.sample(lambda),
                     pdf_pos: 1.0 / a.area,
@@ -299,8 +288,7 @@ impl Light {
                 let d = uniform_sphere(u2);
                 Some(LightLeSample {
                     ray: Ray::new(pl.p, d),
-                    origin: pl.p,
-                    origin_error: Vec3A::ZERO,
+                    p_error: Vec3A::ZERO,
                     n: Vec3A::ZERO,
                     l: pl.intensity.sample(lambda),
                     pdf_pos: 1.0,
@@ -317,8 +305,7 @@ impl Light {
                 let o = e.center - d * e.radius + frame.s * disk.x + frame.t * disk.y;
                 Some(LightLeSample {
                     ray: Ray::new(o, d),
-                    origin: o,
-                    origin_error: Vec3A::ZERO,
+                    p_error: Vec3A::ZERO,
                     n: d,
                     l: e.le.sample(lambda),
                     pdf_pos: 1.0 / (PI * e.radius * e.radius),

@@ -170,8 +170,10 @@ struct RenderArgs {
     #[arg(long)]
     quiet: bool,
     /// Also write one EXR per BDPT strategy (s, t), weighted and unweighted,
-    /// into this directory (created if missing; bdpt only), listed in the
-    /// sidecar; an earlier render's other strategy images there are removed.
+    /// for paths of up to --strategies-max-length bounces, and the weighted
+    /// sum of all longer ones, into this directory (created if missing; bdpt
+    /// only), listed in the sidecar; an earlier render's other strategy
+    /// images there are removed.
     #[arg(long, value_name = "DIR")]
     strategies: Option<PathBuf>,
     /// With --strategies: the longest paths, in bounces (s + t - 2), whose
@@ -455,7 +457,7 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
     };
     if a.strategies.is_some() {
         let max_length = a.strategies_max_length.unwrap_or(DEFAULT_MAX_LENGTH);
-        strategies::check_memory(identity.width, identity.height, max_length)
+        strategies::check_memory(identity.width, identity.height, max_length, max_depth)
             .map_err(|e| anyhow!("--strategies-max-length: {e}"))?;
     }
     let opts = RenderOptions { seed, threads: a.threads, progress: !a.quiet };
@@ -702,7 +704,7 @@ fn remove_stale_strategy_images(dir: &Path, written: &[String]) -> Result<()> {
     Ok(())
 }
 
-/// --strategies: the image plus one image per BDPT strategy.
+/// --strategies: the image plus the per-strategy images (`StrategyImages`).
 fn render_strategies(
     s: &Setup,
     dir: &Path,

@@ -174,26 +174,24 @@ impl Vertex {
         Self { connectible: material.is_non_specular(), ..Self::new(VertexKind::Surface, si, beta, 0.0) }
     }
 
-    /// A subpath's end at `p`, whose rays use the point `at`.
-    fn endpoint(kind: VertexKind, p: Vec3A, at: SurfacePoint, wo: Vec3A, light: Option<u32>) -> SurfaceInteraction {
-        let SurfacePoint { p: origin, p_error: origin_error, n, slot } = at;
+    fn endpoint(kind: VertexKind, at: SurfacePoint, wo: Vec3A, light: Option<u32>) -> SurfaceInteraction {
+        let SurfacePoint { p, p_error, n, slot } = at;
         let frame = if n == Vec3A::ZERO { Frame::from_normal(Vec3A::Z) } else { Frame::from_normal(n) };
         debug_assert!(kind != VertexKind::Surface);
-        SurfaceInteraction { p, origin, origin_error, t: 0.0, ng: n, frame, wo, material: u32::MAX, light, slot }
+        SurfaceInteraction { p, p_error, t: 0.0, ng: n, frame, wo, material: u32::MAX, light, slot }
     }
 
     /// The pinhole as the first camera vertex, with throughput `beta`.
     pub fn camera(scene: &Scene, beta: SampledSpectrum) -> Self {
-        let p = scene.camera.position;
-        let si = Self::endpoint(VertexKind::Camera, p, SurfacePoint::at(p), Vec3A::ZERO, None);
+        let si = Self::endpoint(VertexKind::Camera, SurfacePoint::at(scene.camera.position), Vec3A::ZERO, None);
         Self::new(VertexKind::Camera, si, beta, 0.0)
     }
 
-    /// A light origin (area or point light `light` at `p`, whose rays use
-    /// the point `at`, whose normal is zero for a point light), throughput
-    /// `beta` = Le / pdf and origin density `pdf_fwd`.
-    pub fn light(light: u32, p: Vec3A, at: SurfacePoint, beta: SampledSpectrum, pdf_fwd: f32) -> Self {
-        let si = Self::endpoint(VertexKind::Light, p, at, Vec3A::ZERO, Some(light));
+    /// A light origin (area or point light `light` at `at`, whose normal is
+    /// zero for a point light), throughput `beta` = Le / pdf and origin
+    /// density `pdf_fwd`.
+    pub fn light(light: u32, at: SurfacePoint, beta: SampledSpectrum, pdf_fwd: f32) -> Self {
+        let si = Self::endpoint(VertexKind::Light, at, Vec3A::ZERO, Some(light));
         Self::new(VertexKind::Light, si, beta, pdf_fwd)
     }
 
@@ -201,7 +199,7 @@ impl Vertex {
     /// direction its light travels into the scene, `p` any point far away
     /// along -w_in.
     pub fn environment(light: u32, p: Vec3A, w_in: Vec3A, beta: SampledSpectrum, pdf_fwd: f32) -> Self {
-        let si = Self::endpoint(VertexKind::Environment, p, SurfacePoint::at(p), w_in, Some(light));
+        let si = Self::endpoint(VertexKind::Environment, SurfacePoint::at(p), w_in, Some(light));
         Self::new(VertexKind::Environment, si, beta, pdf_fwd)
     }
 
@@ -425,8 +423,8 @@ pub fn light_subpath<const MIS: bool>(
         (v, v.beta / le.pdf_pos, le.pdf_pos)
     } else {
         let n = if light.is_delta_position() { Vec3A::ZERO } else { le.n };
-        let at = SurfacePoint { p: le.origin, p_error: le.origin_error, n, slot: le.slot };
-        let v = Vertex::light(i, le.ray.o, at, le.l / (pmf * le.pdf_pos), pmf * le.pdf_pos);
+        let at = SurfacePoint { p: le.ray.o, p_error: le.p_error, n, slot: le.slot };
+        let v = Vertex::light(i, at, le.l / (pmf * le.pdf_pos), pmf * le.pdf_pos);
         let cos = if n == Vec3A::ZERO { 1.0 } else { n.dot(le.ray.d).abs() };
         // `sample_le` leaves the origin on the emitter: move it off, or the
         // ray may hit its own triangle at t ~ 0.

@@ -331,16 +331,16 @@ fn render_impl(
     samples: Range<u32>,
     strategies: Option<&mut StrategyImages>,
 ) -> RenderStats {
-    let record = strategies.is_some();
+    let record = strategies.as_ref().map(|s| s.max_length);
     let start = Instant::now();
     let (w, h, spp) = (film.width, film.height, samples.len() as u64);
     let tasks = Tasks::new(w, h, samples);
     let merge = Merge { film, strategies, rays: 0, splats: Vec::new() };
     let queue = TaskQueue::new(tasks.len(), merge);
     pool.broadcast(|_| {
-        let mut ws = Workspace { strategies: record.then(Vec::new), ..Workspace::default() };
+        let mut ws = Workspace { strategies: record.map(|_| Vec::new()), ..Workspace::default() };
         queue.work(|i| {
-            let out = render_task(scene, integrator, seed, &mut ws, w, &tasks.get(i));
+            let out = render_task(scene, integrator, seed, &mut ws, record, w, &tasks.get(i));
             bar.inc(out.sums.len() as u64 * out.spp);
             out
         });
@@ -508,11 +508,13 @@ fn progress_bar(visible: bool, film: &Film, samples: &Range<u32>) -> ProgressBar
     bar
 }
 
+/// `strategies`: with per-strategy images, their `max_length`.
 fn render_task(
     scene: &Scene,
     integrator: &dyn Integrator,
     seed: u64,
     ws: &mut Workspace,
+    strategies: Option<u32>,
     width: u32,
     task: &Task,
 ) -> TaskOutput {
@@ -525,7 +527,7 @@ fn render_task(
         splats: Vec::new(),
         dropped: DroppedSamples::default(),
         rays: 0,
-        strategies: ws.strategies.is_some().then(TaskStrategies::default),
+        strategies: strategies.map(TaskStrategies::new),
     };
     let image = UVec2::new(width, scene.camera.height);
     crate::scene::take_ray_count();

@@ -54,6 +54,17 @@ pub struct StrategyImages {
 /// of their unweighted estimates estimates nothing).
 pub const LONGER: (u32, u32) = (u32::MAX, u32::MAX);
 
+/// The key of strategy (s, t)'s sums: its own for paths of at most
+/// `max_length` bounces (s + t - 2), `LONGER` for longer ones (and for
+/// `LONGER` itself).
+fn key(s: u32, t: u32, max_length: u32) -> (u32, u32) {
+    if s.saturating_add(t).saturating_sub(2) > max_length {
+        LONGER
+    } else {
+        (s, t)
+    }
+}
+
 /// The file of `LONGER`'s weighted image.
 const LONGER_FILE: &str = "longer_paths_weighted.exr";
 
@@ -66,17 +77,19 @@ impl StrategyImages {
     }
 
     /// Bytes the images of paths up to `max_length` bounces can take at
-    /// `width` x `height`: (K + 1)(K + 4) / 2 strategies (K + 2 of length
-    /// K), and `LONGER`, each two images of three f64 a pixel.
-    pub fn most_bytes(width: u32, height: u32, max_length: u32) -> f64 {
-        let k = max_length as f64;
-        ((k + 1.0) * (k + 4.0) / 2.0 + 1.0) * 48.0 * width as f64 * height as f64
+    /// `width` x `height` when no path is longer than `max_depth`: K =
+    /// min(max_length, max_depth), (K + 1)(K + 4) / 2 strategies (K + 2 of
+    /// length K), and `LONGER` if max_depth > max_length, each two images
+    /// of three f64 a pixel.
+    pub fn most_bytes(width: u32, height: u32, max_length: u32, max_depth: u32) -> f64 {
+        let k = max_length.min(max_depth) as f64;
+        let longer = if max_depth > max_length { 1.0 } else { 0.0 };
+        ((k + 1.0) * (k + 4.0) / 2.0 + longer) * 48.0 * width as f64 * height as f64
     }
 
-    fn buffers(&mut self, s: u32, t: u32) -> &mut [Vec<[f64; 3]>; 2] {
+    fn buffers(&mut self, (s, t): (u32, u32)) -> &mut [Vec<[f64; 3]>; 2] {
         let n = (self.width * self.height) as usize;
-        let key = if (s + t).saturating_sub(2) > self.max_length { LONGER } else { (s, t) };
-        self.sums.entry(key).or_insert_with(|| [vec![[0.0; 3]; n], vec![[0.0; 3]; n]])
+        self.sums.entry(key(s, t, self.max_length)).or_insert_with(|| [vec![[0.0; 3]; n], vec![[0.0; 3]; n]])
     }
 
     /// The image of strategy (s, t), weighted (its share of the final image)
@@ -108,11 +121,11 @@ impl StrategyImages {
     }
 }
 
-/// Refuses per-strategy images of paths up to `max_length` bounces at
-/// `width` x `height` that this machine could not hold
+/// Refuses per-strategy images of paths up to `max_length` bounces (of at
+/// most `max_depth`) at `width` x `height` that this machine could not hold
 /// (`StrategyImages::most_bytes`).
-pub fn check_memory(width: u32, height: u32, max_length: u32) -> Result<(), String> {
-    let bytes = StrategyImages::most_bytes(width, height, max_length);
+pub fn check_memory(width: u32, height: u32, max_length: u32, max_depth: u32) -> Result<(), String> {
+    let bytes = StrategyImages::most_bytes(width, height, max_length, max_depth);
     match crate::stats::physical_memory() {
         Some(total) if bytes > total as f64 => Err(format!(
             "the images of every strategy of paths up to {max_length} bounces at {width}x{height} may take {:.1} GB, \
@@ -137,15 +150,20 @@ pub fn is_strategy_image(name: &str) -> bool {
 }
 
 /// A task's strategy records: per-(s, t) sums over its own pixels (t >= 2)
-/// and splats (t = 1: pixel index, s, t, [weighted, unweighted]).
-#[derive(Default)]
+/// and splats (t = 1: pixel index, s, t, [weighted, unweighted]), those of
+/// paths longer than `max_length` under `LONGER` already.
 pub(crate) struct TaskStrategies {
+    max_length: u32,
     pixels: BTreeMap<(u32, u32), Vec<[[f64; 3]; 2]>>,
     splats: Vec<(u32, u32, u32, [[f64; 3]; 2])>,
     dropped: DroppedSamples,
 }
 
 impl TaskStrategies {
+    pub(crate) fn new(max_length: u32) -> Self {
+        Self { max_length, pixels: BTreeMap::new(), splats: Vec::new(), dropped: DroppedSamples::default() }
+    }
+
     /// A sample's strategy records: t >= 2 ones are summed into the task's
     /// pixel `local` (of `n`), t = 1 ones kept as splats.
     pub(crate) fn add(&mut self, records: &[StrategyRecord], local: usize, n: usize, cmf: &SampledCmf, image: UVec2) {
@@ -157,10 +175,11 @@ impl TaskStrategies {
                 continue;
             }
             let rgb = [w, u].map(|c| c.unwrap_or(Vec3::ZERO).to_array().map(f64::from));
+            let (s, t) = key(r.s, r.t, self.max_length);
             if r.t == 1 {
-                self.splats.push((splat_pixel(r.raster, image), r.s, r.t, rgb));
+                self.splats.push((splat_pixel(r.raster, image), s, t, rgb));
             } else {
-                let sums = self.pixels.entry((r.s, r.t)).or_insert_with(|| vec![[[0.0; 3]; 2]; n]);
+                let sums = self.pixels.entry((s, t)).or_insert_with(|| vec![[[0.0; 3]; 2]; n]);
                 add_pair(&mut sums[local], &rgb);
             }
         }
@@ -179,8 +198,8 @@ impl StrategyImages {
     /// and its splats.
     pub(crate) fn add_task(&mut self, origin: UVec2, size: UVec2, records: TaskStrategies) {
         let width = self.width;
-        for ((s, t), sums) in records.pixels {
-            let buffers = self.buffers(s, t);
+        for (st, sums) in records.pixels {
+            let buffers = self.buffers(st);
             for y in 0..size.y {
                 for x in 0..size.x {
                     let i = ((origin.y + y) * width + origin.x + x) as usize;
@@ -189,7 +208,7 @@ impl StrategyImages {
             }
         }
         for (i, s, t, v) in records.splats {
-            add_to_buffers(self.buffers(s, t), i as usize, &v);
+            add_to_buffers(self.buffers((s, t)), i as usize, &v);
         }
         self.dropped.merge(&records.dropped);
     }

@@ -518,8 +518,11 @@ pub fn errors(image: &[[f32; 3]], reference: &[[f32; 3]]) -> (f64, f64, f64) {
 /// `cfg.out`, and returns what they show.
 pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
     check_config(cfg)?;
-    check_converge_outputs(cfg)?;
+    check_converge_outputs(cfg, &[])?;
     let mut builder = load_scene(&cfg.scene)?;
+    // The files the scene reads beside itself, known once it is loaded.
+    let files = std::mem::take(&mut builder.inputs);
+    check_converge_outputs(cfg, &files)?;
     if let Some((w, h)) = cfg.resolution {
         builder.set_resolution(w, h).map_err(|e| anyhow::anyhow!("--width, --height: {e}"))?;
     }
@@ -548,7 +551,7 @@ pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
         reference.len()
     );
     std::fs::create_dir_all(&cfg.out).with_context(|| format!("cannot create {}", cfg.out.display()))?;
-    check_converge_outputs(cfg)?;
+    check_converge_outputs(cfg, &files)?;
 
     let mut results = Vec::new();
     let mut finals = Vec::new();
@@ -676,9 +679,11 @@ fn result_notes(cfg: &ConvergeConfig, x: &IntegratorResult, info: &ReferenceInfo
 /// and writable where its directory exists (`check_writable`):
 /// a reference rendered to `DIR/<label>.exr` would be replaced by
 /// `--save-exr`, and `--reference-out s.exr` would write its sidecar over a
-/// scene `s.json`.
-fn check_converge_outputs(cfg: &ConvergeConfig) -> Result<()> {
+/// scene `s.json`; nor may any replace a file the scene reads (`files`:
+/// `SceneBuilder::inputs`, such as a glTF file's texture, `images.png`).
+fn check_converge_outputs(cfg: &ConvergeConfig, files: &[PathBuf]) -> Result<()> {
     let mut inputs = vec![("the scene", cfg.scene.clone())];
+    inputs.extend(files.iter().map(|f| ("a file the scene reads", f.clone())));
     let mut outputs: Vec<(&str, PathBuf)> = ["results.csv", "results.json", "report.md", "images.png", "errors.png"]
         .into_iter()
         .map(|n| ("an output", cfg.out.join(n)))

@@ -15,8 +15,8 @@ pub use json::{load_scene, parse_scene, LoadError};
 use crate::accel::{Accel, TriangleHit, LANES};
 use crate::camera::Camera;
 use crate::geometry::{
-    barycentric_error, edge_margin, near_edges, shading_normal, triangle_point, Frame, Ray, Shadow, SurfacePoint,
-    TrianglePoint, NO_TRIANGLE,
+    barycentric_error, edge_margin, kept_off_edges, near_edges, shading_normal, Frame, Ray, Shadow, SurfacePoint,
+    NO_TRIANGLE,
 };
 use crate::light::{AreaLight, EnvironmentLight, Light, PointLight};
 use crate::materials::Bsdf;
@@ -160,15 +160,9 @@ fn mesh_index(meshes: &[MeshRecord], prim: u32) -> usize {
 /// A ray's closest hit, with everything shading needs.
 #[derive(Clone, Copy, Debug)]
 pub struct SurfaceInteraction {
-    /// Where the ray met the surface.
     pub p: Vec3A,
-    /// The point rays leaving or reaching this one use: `p`, or within the
-    /// triangle's margin of an edge a point moved off it
-    /// (`geometry::triangle_point`).
-    pub origin: Vec3A,
-    /// Bound on the rounding error of `origin` per axis
-    /// (`barycentric_error`).
-    pub origin_error: Vec3A,
+    /// Bound on the rounding error of `p` per axis (`barycentric_error`).
+    pub p_error: Vec3A,
     pub t: f32,
     /// Geometric normal (winding side).
     pub ng: Vec3A,
@@ -190,11 +184,10 @@ impl SurfaceInteraction {
         self.point().spawn_ray(w)
     }
 
-    /// The point rays use, with its error bound and geometric normal, for
-    /// visibility.
+    /// The point with its error bound and geometric normal, for visibility.
     #[inline]
     pub fn point(&self) -> SurfacePoint {
-        SurfacePoint { p: self.origin, p_error: self.origin_error, n: self.ng, slot: self.slot }
+        SurfacePoint { p: self.p, p_error: self.p_error, n: self.ng, slot: self.slot }
     }
 
     /// Veach's shading-normal correction for adjoint (importance) transport,
@@ -588,20 +581,13 @@ impl Scene {
     }
 
     /// The surface interaction of a ray's hit, None if traced again in
-    /// f64 it misses (`hit_by_an_edge`). Off the margin of every edge,
-    /// the hit's point is the one its rays use (`triangle_point`).
+    /// f64 it misses (`hit_by_an_edge`).
     #[inline(always)]
     fn interaction(&self, ray: &Ray, hit: &TriangleHit) -> Option<SurfaceInteraction> {
         let b = [1.0 - hit.b1 - hit.b2, hit.b1, hit.b2];
         let by_an_edge = near_edges(b, hit.margin.max(hit.edge_error));
-        let (hit, b, points) = if by_an_edge {
-            self.hit_by_an_edge(ray)?
-        } else {
-            let [v0, v1, v2] = hit.v;
-            let p = v0 * b[0] + v1 * b[1] + v2 * b[2];
-            (*hit, b, TrianglePoint { p, origin: p, origin_error: barycentric_error(&hit.v, b[0], b[1], b[2]) })
-        };
-        Some(self.interaction_at(ray, &hit, b, points))
+        let (hit, b) = if by_an_edge { self.hit_by_an_edge(ray)? } else { (*hit, b) };
+        Some(self.interaction_at(ray, &hit, b))
     }
 
     /// A hit the f32 test may be wrong about (a barycentric within
@@ -609,29 +595,22 @@ impl Scene {
     /// edge, where the test can find both faces of a convex edge the ray
     /// passes, or first the one it would leave by), or within its
     /// triangle's margin of an edge (`triangle_point`): traced again in f64
-    /// (`Accel::intersect_exact`), with its points (`triangle_point`).
+    /// (`Accel::intersect_exact`), with the point kept off the edges.
     /// (Every ray `interaction` serves was traced to infinity.)
     #[cold]
     #[inline(never)]
-    fn hit_by_an_edge(&self, ray: &Ray) -> Option<(TriangleHit, [f32; 3], TrianglePoint)> {
+    fn hit_by_an_edge(&self, ray: &Ray) -> Option<(TriangleHit, [f32; 3])> {
         let hit = self.accel.intersect_exact(ray, f32::INFINITY)?;
-        let b = [1.0 - hit.b1 - hit.b2, hit.b1, hit.b2];
-        Some((hit, b, triangle_point(&hit.v, b, hit.margin)))
+        Some((hit, kept_off_edges(&hit.v, [1.0 - hit.b1 - hit.b2, hit.b1, hit.b2], hit.margin)))
     }
 
-    /// The surface interaction at barycentrics `b` of a ray's hit, at its
-    /// point on the triangle (`triangle_point`).
+    /// The surface interaction at barycentrics `b` of a ray's hit.
     #[inline(always)]
-    fn interaction_at(
-        &self,
-        ray: &Ray,
-        hit: &TriangleHit,
-        b: [f32; 3],
-        TrianglePoint { p, origin, origin_error }: TrianglePoint,
-    ) -> SurfaceInteraction {
+    fn interaction_at(&self, ray: &Ray, hit: &TriangleHit, b: [f32; 3]) -> SurfaceInteraction {
         let v = hit.v;
         let m = &self.meshes[self.mesh_of(hit.slot, hit.prim)];
         let k = (hit.prim - m.start) as usize;
+        let (p, p_error) = (v[0] * b[0] + v[1] * b[1] + v[2] * b[2], barycentric_error(&v, b[0], b[1], b[2]));
         // What `normal_and_area` gives a triangle the BVH holds (non-zero,
         // finite area), without the area.
         let ng = (v[1] - v[0]).cross(v[2] - v[0]).normalize();
@@ -644,8 +623,7 @@ impl Scene {
         };
         SurfaceInteraction {
             p,
-            origin,
-            origin_error,
+            p_error,
             t: hit.t,
             ng,
             frame: Frame::from_normal(ns),
