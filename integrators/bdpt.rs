@@ -220,7 +220,7 @@ fn next_event(
     let mut q = if source.is_infinite() {
         Vertex::environment(i, ls.p, -ls.wi, beta, 0.0)
     } else {
-        Vertex::light(i, ls.p, ls.point(), beta, 0.0)
+        Vertex::light(i, ls.point(), beta, 0.0)
     };
     q.pdf_fwd = q.pdf_light_origin(scene, pt);
     init_mis(scene, std::slice::from_mut(&mut q), Subpath::Light, mis);
