@@ -87,9 +87,11 @@ pub fn barycentric_error(v: &[Vec3A; 3], b0: f32, b1: f32, b2: f32) -> Vec3A {
 /// that such a point lies at least 16 E from every edge's line. The bound
 /// is E = gamma(7) |(max_j |v_j.x|, max_j |v_j.y|, max_j |v_j.z|)|
 /// (`rounding_extent`), which `barycentric_error` stays within for any
-/// barycentrics >= 0 summing to 1. At most `MAX_EDGE_MARGIN` (a sliver, or
-/// a triangle tiny against its distance from the origin, which f32 cannot
-/// resolve anyway). In f64, from the vertices as stored.
+/// barycentrics >= 0 summing to 1. At most `MAX_EDGE_MARGIN`, 1/64: a
+/// triangle whose least altitude is below 1,024 E (4.3 mm 10 from the
+/// origin; a sliver, or a small triangle far out) keeps its points h_min /
+/// 64 from its edges, less than 16 E, rather than pushing them towards its
+/// middle. In f64, from the vertices as stored.
 ///
 /// Why 16 E: where a neighbour's plane passes through an edge at an angle
 /// phi to this triangle's plane (a cube's face beside another: 90
@@ -142,7 +144,7 @@ pub fn triangle_point(v: &[Vec3A; 3], b: [f32; 3], margin: f32) -> (Vec3A, Vec3A
 #[inline(always)]
 pub fn kept_off_edges(v: &[Vec3A; 3], b: [f32; 3], margin: f32) -> [f32; 3] {
     if near_edges(b, margin) {
-        inset(v, b)
+        inset(v, b, margin)
     } else {
         b
     }
@@ -159,7 +161,12 @@ pub fn near_edges(b: [f32; 3], margin: f32) -> bool {
 /// inset by d = `EDGE_MARGIN` E: every edge moved inwards by d, which is
 /// `v` scaled about its incentre I by 1 - k, k = d / r (r the inradius),
 /// and holds exactly the points with b_i >= k beta_i, beta_i = the side
-/// opposite vertex i over the perimeter (I's barycentrics). The nearest
+/// opposite vertex i over the perimeter (I's barycentrics). k is taken as
+/// `margin` / beta_max, which is d / r where the margin is not capped (it
+/// is d over the least altitude, 2 area / longest side, and r = 2 area /
+/// perimeter), and where it is capped gives the points margin h_min from
+/// the edges; either way k beta_i <= `margin`, so `near_edges` at the
+/// margin misses no point outside the inset triangle. The nearest
 /// point is found in f64 (Ericson 2005, "Real-Time Collision Detection",
 /// 5.1.5, `ClosestPtPointTriangle`). So a point is moved across the edges
 /// it is too near, by at most d each, not along them: until session 49 the
@@ -168,26 +175,25 @@ pub fn near_edges(b: [f32; 3], margin: f32) -> bool {
 /// origin) slid points millimetres along it, and a light's points were no
 /// longer uniform: 5 mm below such a strip light next-event estimation and
 /// light tracing read 2.4 % low (an audit;
-/// `light_points_keep_their_density_on_slivers`). k is at most 1/32, so
-/// that every point with b_i >= `MAX_EDGE_MARGIN` is in the inset triangle
-/// (beta_i < 1/2), and `near_edges` at the margin misses none outside it.
-/// Inlined though rarely run and large: out of line (`#[cold]`,
+/// `light_points_keep_their_density_on_slivers`). A point already in the
+/// inset triangle is left as it is (on a sliver of aspect 1e-6, the
+/// nearest-point arithmetic itself would move it along by ~13 E; a
+/// review). Inlined though rarely run and large: out of line (`#[cold]`,
 /// `#[inline(never)]`), the call inside the walks' inlined loops made the
 /// README's `path` render 1.08x as long (ABBA, 3 pairs: 1.220 against
 /// 1.135 s) for +0.33 % instructions, as session 47 found of the rule
 /// before it (docs/performance-log.md, "Session 47" and "Session 49").
 #[inline(always)]
-pub fn inset(v: &[Vec3A; 3], b: [f32; 3]) -> [f32; 3] {
+pub fn inset(v: &[Vec3A; 3], b: [f32; 3], margin: f32) -> [f32; 3] {
     let t = v.map(|x| x.as_dvec3());
     let sides = [(t[2] - t[1]).length(), (t[0] - t[2]).length(), (t[1] - t[0]).length()];
     let perimeter = sides[0] + sides[1] + sides[2];
-    let inradius = (t[1] - t[0]).cross(t[2] - t[0]).length() / perimeter;
-    let k = (EDGE_MARGIN * rounding_extent(v) / inradius).min(1.0 / 32.0);
-    if !(k >= 0.0 && perimeter > 0.0) {
-        // A degenerate triangle: never hit nor sampled.
+    let beta = sides.map(|s| s / perimeter);
+    let k = margin as f64 / beta[0].max(beta[1]).max(beta[2]);
+    if !(k.is_finite() && perimeter > 0.0) || (0..3).all(|i| b[i] as f64 >= k * beta[i]) {
+        // Inside already, or a degenerate triangle (never hit nor sampled).
         return b;
     }
-    let beta = sides.map(|s| s / perimeter);
     let centre = t[0] * beta[0] + t[1] * beta[1] + t[2] * beta[2];
     let inner = t.map(|x| centre + (x - centre) * (1.0 - k));
     let p = t[0] * b[0] as f64 + t[1] * b[1] as f64 + t[2] * b[2] as f64;
@@ -490,7 +496,8 @@ mod tests {
 
     /// Points at least the margin from every edge are made exactly as
     /// before (b unchanged); the others are moved to at least 15 E from
-    /// every edge's line (16 E less the rounding), across the edges they
+    /// every edge's line (16 E less the rounding; margin h_min less the
+    /// rounding where the margin is capped), across the edges they
     /// are too near: by at most 16 E where they are near one edge, by at
     /// most 16 E / sin(theta / 2) near a vertex of angle theta. On a unit
     /// right triangle at the origin, whose margin is 16 E / h_min with
@@ -511,9 +518,22 @@ mod tests {
             let (a, b) = (a.as_dvec3(), b.as_dvec3());
             (p - a).cross(b - a).length() / (b - a).length()
         };
-        for v in [unit, strip] {
+        // Equilateral triangles at x = 10 of side 5 mm (its margin just
+        // below the cap: a first form of `inset` left its moved points
+        // 10.8 E from an edge; a review) and 1 mm (capped: h_min / 64).
+        let equilateral = |side: f32| {
+            [
+                Vec3A::new(10.0, 0.0, 0.0),
+                Vec3A::new(10.0 + side, 0.0, 0.0),
+                Vec3A::new(10.0 + side / 2.0, side * 0.866, 0.0),
+            ]
+        };
+        for v in [unit, strip, equilateral(0.005), equilateral(0.001)] {
             let (margin, e) = (edge_margin(&v), rounding_extent(&v));
             let t = v.map(|x| x.as_dvec3());
+            let longest = (0..3).map(|i| (t[(i + 1) % 3] - t[i]).length()).fold(0.0, f64::max);
+            let h_min = (t[1] - t[0]).cross(t[2] - t[0]).length() / longest;
+            let clearance = (16.0 * e).min(margin as f64 * h_min);
             let angle = |i: usize| (t[(i + 1) % 3] - t[i]).angle_between(t[(i + 2) % 3] - t[i]);
             let sharpest = angle(0).min(angle(1)).min(angle(2));
             for b in [
@@ -537,9 +557,9 @@ mod tests {
                     assert_eq!(got, b);
                     continue;
                 }
-                let (q, moved) = (at(&v, got), (at(&v, got) - at(&v, b)).length());
+                let (q, moved) = (p.as_dvec3(), (p.as_dvec3() - at(&v, b)).length());
                 let nearest = (0..3).map(|i| line_distance(q, v[(i + 1) % 3], v[(i + 2) % 3])).fold(f64::MAX, f64::min);
-                assert!(nearest >= 15.0 * e, "{b:?}: {:.2} E from an edge", nearest / e);
+                assert!(nearest >= clearance - e, "{b:?}: {:.2} E from an edge", nearest / e);
                 assert!(moved <= 16.0 * e / (sharpest / 2.0).sin() + e, "{b:?}: moved {:.1} E", moved / e);
                 // Near one edge, away from the vertices: across it only.
                 if b == [0.0, 0.5, 0.5] || b == [0.5, 1e-9, 0.5] || b == [0.5, 0.5, 0.0] {
