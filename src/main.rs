@@ -442,6 +442,13 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
         }
         builder.set_resolution(w, h).map_err(|e| anyhow!("--width, --height: {e}"))?;
     }
+    if a.strategies.is_some() {
+        // (Before `check_render_outputs`, which creates the directory.)
+        let ((width, height), max_length) =
+            (builder.resolution(), a.strategies_max_length.unwrap_or(DEFAULT_MAX_LENGTH));
+        strategies::check_memory(width, height, max_length, max_depth)
+            .map_err(|e| anyhow!("--strategies-max-length: {e}"))?;
+    }
     check_render_outputs(a, &builder.inputs)?;
     let file = SceneFingerprint::read(&a.scene)?;
     let scene = builder.build();
@@ -455,11 +462,6 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
         max_depth,
         mis: mis.name().to_string(),
     };
-    if a.strategies.is_some() {
-        let max_length = a.strategies_max_length.unwrap_or(DEFAULT_MAX_LENGTH);
-        strategies::check_memory(identity.width, identity.height, max_length, max_depth)
-            .map_err(|e| anyhow!("--strategies-max-length: {e}"))?;
-    }
     let opts = RenderOptions { seed, threads: a.threads, progress: !a.quiet };
     Ok(Setup { scene, integrator, identity, spp, opts })
 }

@@ -577,11 +577,13 @@ fn strategy_images_are_one_renders() {
         n == "longer_paths_weighted.exr" || (st.len() == 2 && st[0] + st[1] <= 3)
     };
     assert!(bounded.contains(&"longer_paths_weighted.exr".to_string()) && bounded.iter().all(short), "{bounded:?}");
-    let args = ["render", &scene, "--integrator", "bdpt", "--strategies", &dir, "--out", &out, "--quiet"];
+    let refused = d.join("refused").display().to_string();
+    let args = ["render", &scene, "--integrator", "bdpt", "--strategies", &refused, "--out", &out, "--quiet"];
     let o = prism(&[&args[..], &["--strategies-max-length", "4000000000"]].concat());
     let e = stderr(&o);
     assert!(!o.status.success() && e.contains("--strategies-max-length: the images of every strategy"), "{e}");
     assert!(!e.contains("spp in"), "it rendered first: {e}");
+    assert!(!d.join("refused").exists(), "the refused render made its directory");
     let _ = std::fs::remove_dir_all(&d);
 }
 

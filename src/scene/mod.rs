@@ -383,6 +383,12 @@ impl SceneBuilder {
         Ok(())
     }
 
+    /// The image's width and height, as the scene or `set_resolution` set
+    /// them.
+    pub fn resolution(&self) -> (u32, u32) {
+        (self.camera.width, self.camera.height)
+    }
+
     pub fn point_light(&mut self, name: &str, p: Vec3A, intensity: Spectrum) -> &mut Self {
         self.lights.push((Light::Point(PointLight { p, intensity }), name.to_string()));
         self
