@@ -124,7 +124,7 @@ const MAX_EDGE_MARGIN: f64 = 1.0 / 64.0;
 /// its rounding error bound (`barycentric_error`), made from `b` itself
 /// unless one is below `margin` (`edge_margin(v)`), when it is moved to
 /// the nearest point at least `EDGE_MARGIN` E from every edge's line
-/// (`kept_off_edges`). Within rounding of an edge, a point could land
+/// (margin h_min where the margin is capped; `kept_off_edges`). Within rounding of an edge, a point could land
 /// exactly in a neighbour's plane, or beyond it: a ray spawned there,
 /// offset along its own normal only, left through the neighbour at t = 0,
 /// and light inside a closed cube got out (a seed sweep, session 47;
@@ -139,8 +139,8 @@ pub fn triangle_point(v: &[Vec3A; 3], b: [f32; 3], margin: f32) -> (Vec3A, Vec3A
 }
 
 /// `b`, or if one is below `margin` (`near_edges`), the barycentrics of
-/// the nearest point at least `EDGE_MARGIN` E from every edge's line
-/// (`inset`).
+/// the nearest point at least `EDGE_MARGIN` E (or margin h_min) from
+/// every edge's line (`inset`).
 #[inline(always)]
 pub fn kept_off_edges(v: &[Vec3A; 3], b: [f32; 3], margin: f32) -> [f32; 3] {
     if near_edges(b, margin) {
