@@ -124,11 +124,11 @@ const MAX_EDGE_MARGIN: f64 = 1.0 / 64.0;
 /// its rounding error bound (`barycentric_error`), made from `b` itself
 /// unless one is below `margin` (`edge_margin(v)`), when it is moved to
 /// the nearest point at least `EDGE_MARGIN` E from every edge's line
-/// (margin h_min where the margin is capped; `kept_off_edges`). Within rounding of an edge, a point could land
-/// exactly in a neighbour's plane, or beyond it: a ray spawned there,
-/// offset along its own normal only, left through the neighbour at t = 0,
-/// and light inside a closed cube got out (a seed sweep, session 47;
-/// `a_closed_shell_keeps_its_light_in`). The move is 16 E or less
+/// (margin h_min where the margin is capped; `kept_off_edges`). Within
+/// rounding of an edge, a point could land exactly in a neighbour's plane,
+/// or beyond it: a ray spawned there, offset along its own normal only,
+/// left through the neighbour at t = 0, and light inside a closed cube got
+/// out (a seed sweep, session 47; `a_closed_shell_keeps_its_light_in`). The move is 16 E or less
 /// across an edge, more only within 16 E / sin(theta / 2) of a vertex of
 /// angle theta, and the light points and hits it moves are a fraction of
 /// about 16 E times the perimeter over the area.

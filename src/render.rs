@@ -331,16 +331,17 @@ fn render_impl(
     samples: Range<u32>,
     strategies: Option<&mut StrategyImages>,
 ) -> RenderStats {
-    let record = strategies.as_ref().map(|s| s.max_length);
+    // With per-strategy images, their bound on the paths' length.
+    let strategy_length = strategies.as_ref().map(|s| s.max_length);
     let start = Instant::now();
     let (w, h, spp) = (film.width, film.height, samples.len() as u64);
     let tasks = Tasks::new(w, h, samples);
     let merge = Merge { film, strategies, rays: 0, splats: Vec::new() };
     let queue = TaskQueue::new(tasks.len(), merge);
     pool.broadcast(|_| {
-        let mut ws = Workspace { strategies: record.map(|_| Vec::new()), ..Workspace::default() };
+        let mut ws = Workspace { strategies: strategy_length.map(|_| Vec::new()), ..Workspace::default() };
         queue.work(|i| {
-            let out = render_task(scene, integrator, seed, &mut ws, record, w, &tasks.get(i));
+            let out = render_task(scene, integrator, seed, &mut ws, strategy_length, w, &tasks.get(i));
             bar.inc(out.sums.len() as u64 * out.spp);
             out
         });

@@ -35,19 +35,22 @@ pub fn render_passes(
 pub fn check_pass_memory(k: u32, width: u32, height: u32) -> Result<(), String> {
     let per_pixel = std::mem::size_of::<[i128; 3]>() + std::mem::size_of::<[f32; 3]>();
     let bytes = k as f64 * width as f64 * height as f64 * per_pixel as f64;
+    check_fits(bytes, &format!("{k} passes of {width}x{height} pixels are held in memory together"))
+}
+
+/// Refuses `bytes` that this machine could not hold, as `what: N GB, more
+/// than this machine's M GB` (none where its memory is unknown).
+pub(crate) fn check_fits(bytes: f64, what: &str) -> Result<(), String> {
     match physical_memory() {
-        Some(total) if bytes > total as f64 => Err(format!(
-            "{k} passes of {width}x{height} pixels are held in memory together: {:.1} GB, more than this \
-             machine's {:.1} GB",
-            bytes / 1e9,
-            total as f64 / 1e9
-        )),
+        Some(total) if bytes > total as f64 => {
+            Err(format!("{what}: {:.1} GB, more than this machine's {:.1} GB", bytes / 1e9, total as f64 / 1e9))
+        }
         _ => Ok(()),
     }
 }
 
 /// Physical memory in bytes (Linux's /proc/meminfo; None elsewhere).
-pub(crate) fn physical_memory() -> Option<u64> {
+fn physical_memory() -> Option<u64> {
     let info = std::fs::read_to_string("/proc/meminfo").ok()?;
     let kb = info.lines().find_map(|l| l.strip_prefix("MemTotal:"))?.trim().strip_suffix("kB")?.trim().parse::<u64>();
     kb.ok().map(|kb| kb * 1024)

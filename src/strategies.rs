@@ -126,15 +126,8 @@ impl StrategyImages {
 /// (`StrategyImages::most_bytes`).
 pub fn check_memory(width: u32, height: u32, max_length: u32, max_depth: u32) -> Result<(), String> {
     let bytes = StrategyImages::most_bytes(width, height, max_length, max_depth);
-    match crate::stats::physical_memory() {
-        Some(total) if bytes > total as f64 => Err(format!(
-            "the images of every strategy of paths up to {max_length} bounces at {width}x{height} may take {:.1} GB, \
-             more than this machine's {:.1} GB (choose fewer bounces or pixels)",
-            bytes / 1e9,
-            total as f64 / 1e9
-        )),
-        _ => Ok(()),
-    }
+    let what = format!("the images of every strategy of paths up to {max_length} bounces at {width}x{height}");
+    crate::stats::check_fits(bytes, &what).map_err(|e| format!("{e} (choose fewer bounces or pixels)"))
 }
 
 /// Whether `name` is a file name `StrategyImages::stage_exrs` writes.
