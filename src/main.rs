@@ -333,7 +333,7 @@ fn reference_command(a: ReferenceArgs) -> Result<()> {
         &scene_inputs(&a.scene, &builder.inputs),
         &[("--out", &a.out), ("its sidecar", &a.out.with_extension("json"))],
     )?;
-    let file = SceneFingerprint::read(&a.scene)?;
+    let file = SceneFingerprint::read(&a.scene, &builder.inputs)?;
     let scene = builder.build();
     let (image, meta) = prism::reference::make_reference(
         &scene,
@@ -450,7 +450,7 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
             .map_err(|e| anyhow!("--strategies-max-length: {e}"))?;
     }
     check_render_outputs(a, &builder.inputs)?;
-    let file = SceneFingerprint::read(&a.scene)?;
+    let file = SceneFingerprint::read(&a.scene, &builder.inputs)?;
     let scene = builder.build();
     let identity = Identity {
         scene: file.name,

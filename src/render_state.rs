@@ -26,7 +26,7 @@ use crate::output::write_bytes;
 use anyhow::{bail, ensure, Context, Result};
 use serde::{Deserialize, Serialize};
 use std::ops::Range;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 const MAGIC: &[u8; 8] = b"PRISMST\0";
 const VERSION: u32 = 2;
@@ -306,25 +306,45 @@ fn coalesce(ranges: impl Iterator<Item = Range<u32>>) -> Vec<Range<u32>> {
 }
 
 /// A scene file as a render's records name it: as it was given, and by
-/// its content (what is compared: `Identity::scene_hash`).
+/// its content and that of every file it reads (what is compared:
+/// `Identity::scene_hash`).
 #[derive(Clone, Debug)]
 pub struct SceneFingerprint {
     pub name: String,
-    /// FNV-1a 64 of the file's bytes, in hex.
+    /// FNV-1a 64, in hex, of the scene file's bytes followed, for each file
+    /// it reads (`SceneBuilder::inputs`: meshes, buffers, images, included
+    /// glTF), by that file's length (8 bytes, little-endian) and bytes. A
+    /// scene that reads no other file keeps the hash of its own bytes.
     pub hash: String,
 }
 
 impl SceneFingerprint {
-    pub fn read(path: &Path) -> Result<Self> {
-        let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
-        Ok(SceneFingerprint { name: path.display().to_string(), hash: format!("{:016x}", fnv1a(&bytes)) })
+    /// The fingerprint of the scene file `path` and the files it reads,
+    /// `inputs`: an edit of a mesh between the parts of a render, or
+    /// between a checkpoint and its resume, is a different scene (only the
+    /// scene file was hashed; from an audit, session 50).
+    pub fn read(path: &Path, inputs: &[PathBuf]) -> Result<Self> {
+        let read = |p: &Path| std::fs::read(p).with_context(|| format!("cannot read {}", p.display()));
+        let mut hash = fnv1a_from(FNV1A_BASIS, &read(path)?);
+        for input in inputs {
+            let bytes = read(input)?;
+            hash = fnv1a_from(fnv1a_from(hash, &(bytes.len() as u64).to_le_bytes()), &bytes);
+        }
+        Ok(SceneFingerprint { name: path.display().to_string(), hash: format!("{hash:016x}") })
     }
 }
+
+const FNV1A_BASIS: u64 = 0xcbf2_9ce4_8422_2325;
 
 /// FNV-1a, 64 bits: a checksum for state files and the scene's identity
 /// (not cryptographic; it catches accidents, not adversaries).
 pub fn fnv1a(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3))
+    fnv1a_from(FNV1A_BASIS, bytes)
+}
+
+/// FNV-1a continued from the hash `h` of the bytes before `bytes`.
+fn fnv1a_from(h: u64, bytes: &[u8]) -> u64 {
+    bytes.iter().fold(h, |h, &b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3))
 }
 
 #[cfg(test)]

@@ -488,6 +488,57 @@ fn grown_parts_and_ignored_options_merge() {
     let _ = std::fs::remove_dir_all(&d);
 }
 
+/// A part or a resume of a scene whose mesh file changed is another
+/// scene's: merge and resume refuse it by `scene_hash`, which covers the
+/// files the scene reads, not only the scene file (only that was hashed;
+/// from an audit, session 50). Control: unchanged, the parts merge.
+#[test]
+fn parts_of_a_scene_whose_mesh_changed_do_not_merge() {
+    let d = temp_dir("mesh-changed");
+    let path = |name: &str| d.join(name).display().to_string();
+    let quad = |z: f32| format!("v -1 -1 {z}\nv 1 -1 {z}\nv 1 1 {z}\nv -1 1 {z}\nf 1 2 3\nf 1 3 4\n");
+    write(&d, "m.obj", &quad(0.0));
+    let scene = write(
+        &d,
+        "s.json",
+        r#"{
+  "camera": {"position": [0, 0, -3], "look_at": [0, 0, 0], "fov": 40, "width": 4, "height": 4},
+  "materials": {"white": {"type": "diffuse", "reflectance": 0.5}},
+  "objects": [{"shape": {"type": "obj", "file": "m.obj"}, "material": "white"}],
+  "lights": [{"type": "environment", "radiance": 1.0}]
+}"#,
+    );
+    let part = |range: &str, out: &str| render_ok(&scene, &["--sample-range", range, "--out", &path(out)]);
+    part("0..1", "p0.exr");
+    part("1..2", "p1.exr");
+    let merge = || prism(&["merge", &path("all.exr"), &path("p0.exr"), &path("p1.exr")]);
+    let o = merge();
+    assert!(o.status.success(), "the control: {}", stderr(&o));
+    std::fs::remove_file(d.join("all.exr")).unwrap();
+    write(&d, "m.obj", &quad(0.5));
+    part("1..2", "p1.exr");
+    let o = merge();
+    let e = stderr(&o);
+    assert!(!o.status.success() && e.contains("scene_hash"), "{e}");
+    assert!(!d.join("all.exr").exists(), "a merge was written");
+    let o = prism(&[
+        "render",
+        &scene,
+        "--threads",
+        "1",
+        "--quiet",
+        "--spp",
+        "2",
+        "--resume",
+        &path("p0.state"),
+        "--out",
+        &path("p0.exr"),
+    ]);
+    let e = stderr(&o);
+    assert!(!o.status.success() && e.contains("scene_hash"), "the resume: {e}");
+    let _ = std::fs::remove_dir_all(&d);
+}
+
 /// A render that checkpoints does not replace, and then remove, a
 /// checkpoint it was not asked to resume: that holds an interrupted
 /// render's samples (from an audit: it went without a word). Resumed, it is

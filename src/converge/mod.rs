@@ -537,7 +537,7 @@ pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
         .iter()
         .map(|s| integrators::create(&s.name, &IntegratorOptions { max_depth, mis: s.mis }).map_err(anyhow::Error::msg))
         .collect::<Result<Vec<_>>>()?;
-    let scene_file = SceneFingerprint::read(&cfg.scene)?;
+    let scene_file = SceneFingerprint::read(&cfg.scene, &files)?;
     // What no estimator can get right: a note on every chart of the run.
     let mut notes: Vec<String> = scene.geometry_warnings();
     for n in &notes {
