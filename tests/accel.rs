@@ -635,6 +635,39 @@ fn empty_and_bounds() {
     assert!(!accel.is_empty());
 }
 
+/// Triangles whose boxes' surface areas pass f32's range build, and the
+/// BVH still finds their hits: a sliver 1e20 long and wide has a finite
+/// cross product (so it is no degenerate triangle) but an infinite box
+/// area, and three slivers at +-2e38 give a box whose extent is infinite
+/// and whose area is infinity times zero. Every SAH cost of their subtree
+/// was then infinite or NaN, no split was recorded, and the collapse to
+/// wide nodes indexed slot -1 (a panic; from an audit, session 50).
+#[test]
+fn boxes_whose_area_overflows_build() {
+    let v = |x: f32, y: f32, z: f32| Vec3A::new(x, y, z);
+    let sliver = [v(0.0, 0.0, 0.0), v(1e20, 1e20, 0.0), v(0.0, 0.1, 0.0)];
+    let small = [v(5.0, 0.0, 1.0), v(6.0, 0.0, 1.0), v(5.0, 1.0, 1.0)];
+    assert!(!is_degenerate(&sliver));
+    let far = |x: f32| {
+        let d = x.abs() * f32::EPSILON;
+        [v(x, 0.0, 0.0), v(x + d, 0.0, 0.0), v(x, 1e-13, 0.0)]
+    };
+    let spread = [far(-2e38), far(-1.5e38), far(2e38)];
+    for (name, tris) in [("the 1e20 sliver", vec![sliver, small]), ("the +-2e38 slivers", spread.to_vec())] {
+        let accel = Accel::build(&tris);
+        assert_eq!(accel.len(), tris.len(), "{name}");
+        let mut rng = Rand::new(50);
+        let rays: Vec<(Ray, f32)> = (0..2000).map(|_| random_ray(&mut rng)).collect();
+        for (ray, t_max) in rays {
+            let want = brute(&tris, &ray, t_max).map(|h| h.t);
+            assert_eq!(accel.intersect(&ray, t_max).map(|h| h.t), want, "{name}: {ray:?}");
+        }
+    }
+    let down = Ray::new(v(5.2, 0.2, 3.0), Vec3A::NEG_Z);
+    let both = Accel::build(&[sliver, small]);
+    assert_eq!(both.intersect(&down, f32::INFINITY).map(|h| h.t), Some(2.0));
+}
+
 /// Both traversals leave a triangle exactly at t_max unhit, and find it
 /// when t_max is one ulp further. (The f64 one once let a first hit
 /// within its error bound of t_max tie with the placeholder it starts

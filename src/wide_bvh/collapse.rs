@@ -70,7 +70,10 @@ impl Collapse {
             nodes,
             cost: vec![[0.0; BRANCHING]; n],
             choice: vec![[Choice::Leaf; BRANCHING]; n],
-            split: vec![[0; BRANCHING]; n],
+            // k = 1 is a split of every j >= 2; it stays where no cost is
+            // finite (boxes whose area passes f32's range), which would
+            // otherwise leave k = 0 and a slot -1 to `distribute`.
+            split: vec![[1; BRANCHING]; n],
         };
         for i in (0..n).rev() {
             table.fill(i);
@@ -100,7 +103,10 @@ impl Collapse {
             }
         }
         let inner = area * NODE_COST + distribute[BRANCHING - 1];
-        let (mut cost, mut choice) = if leaf <= inner { (leaf, Choice::Leaf) } else { (inner, Choice::Inner) };
+        // (A leaf of too many primitives costs infinity, as may an inner
+        // node whose area overflows: the tie goes to the inner node.)
+        let fits = range.len() <= MAX_LEAF_PRIMS;
+        let (mut cost, mut choice) = if fits && leaf <= inner { (leaf, Choice::Leaf) } else { (inner, Choice::Inner) };
         self.cost[n][0] = cost;
         self.choice[n][0] = choice;
         for i in 2..BRANCHING {

@@ -234,7 +234,8 @@ fn swept_split(refs: &[PrimRef]) -> Option<Split> {
                 continue;
             }
             let cost = bounds.half_area() * i as f32 + right_cost[i];
-            if best.is_none_or(|s| cost < s.cost) {
+            // (Not a cost past f32's range: a NaN, once kept, would stay.)
+            if cost.is_finite() && best.is_none_or(|s| cost < s.cost) {
                 best = Some(Split { axis, plane: Plane::Key(order[i].0), cost });
             }
         }
@@ -277,6 +278,24 @@ pub(super) fn split_in_two(refs: &mut [PrimRef], range: &Range, split: Option<Sp
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The sweep's best split has a finite cost: three slivers at x =
+    /// -2e38, -1.5e38 and 2e38 make the first candidate's right box
+    /// infinitely wide and flat, its area NaN, and a NaN once kept was
+    /// never replaced (no cost is below it), so the two far ends shared a
+    /// child (from an audit, session 50). The finite split keeps the
+    /// two near ones together.
+    #[test]
+    fn a_sweep_passes_over_costs_past_f32s_range() {
+        let sliver = |x: f32, i: u32| {
+            let lo = Vec3A::new(x, 0.0, 0.0);
+            PrimRef::new(Aabb::new(lo, lo + Vec3A::new(x.abs() * f32::EPSILON, 1e-13, 0.0)), i)
+        };
+        let refs = [sliver(-2e38, 0), sliver(-1.5e38, 1), sliver(2e38, 2)];
+        let split = swept_split(&refs).expect("a finite split");
+        assert!(split.cost.is_finite(), "{split:?}");
+        assert!(matches!(split.plane, Plane::Key(k) if split.axis == 0 && k > 0.0), "{split:?}");
+    }
 
     /// A partition classifies by `Grid::bin`, the binning by `Grid::bins`:
     /// they must agree, or a split's two sides would not be the bins its
