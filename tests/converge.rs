@@ -195,10 +195,18 @@ fn grid_checkpoints_are_reproducible_and_the_time_budget_holds() {
                 "{clock:?} clock, {}: {} spp in {:.3} s ({:.3} s wall)",
                 x.label, x.spp, x.seconds, x.wall_seconds
             );
-            assert!((0.5..3.0).contains(&x.seconds), "{}: {} s for a 1 s budget", x.label, x.seconds);
-            assert!(x.spp > 20, "{}: only {} spp in 1 s at 16x16", x.label, x.spp);
+            // What holds at any speed (a timing is no pass/fail criterion):
+            // every checkpoint but the last began within the budget, and the
+            // last ended where not one more sample fitted at the throughput
+            // so far (n (1 - s) / s < 1, so s > n / (n + 1)).
+            // (`next_target`'s own test checks its predictions.)
             let times: Vec<f64> = x.checkpoints.iter().map(|c| c.time(clock)).collect();
             assert!(times.windows(2).all(|w| w[0] <= w[1]));
+            let (last, before) = times.split_last().unwrap();
+            assert!(before.iter().all(|&t| t < 1.0), "{}: went on after the budget: {times:?}", x.label);
+            let n = x.spp as f64;
+            assert!(*last > n / (n + 1.0), "{}: stopped at {n} spp in {last} s of a 1 s budget", x.label);
+            assert_eq!(x.seconds, *last);
         }
     }
     std::fs::remove_dir_all(&d).unwrap();

@@ -182,7 +182,7 @@ fn report_md(r: &ConvergeResults) -> String {
          ## Final images\n\n![final images](images.png)\n\n\
          ## Per-pixel error\n\nmean over channels of (x - ref)^2 / (ref^2 + 0.01), log colour scale shared by all \
          panels (the mean of each map is the integrator's relMSE):\n\n![per-pixel error](errors.png)\n\n\
-         ## Determinism\n\nThe image at a grid checkpoint (1, 2, 3, 4, 5, 6, 7, 8, 10, 11, 13, 16, ... spp; `by_spp = \
+         ## Determinism\n\nThe image at a grid checkpoint (1, 2, ..., 8, then multiples of 8 near quarter octaves: 16, 24, 32, 40, ... spp; `by_spp = \
          true` in the CSV) depends only on the scene, the seed and spp, so its errors are reproduced bit for bit by \
          the same command, at the same commit and build target. {} are measurements and vary from run to run \
          and machine to machine; the last checkpoint of a time-limited run ends where the budget ran out \
