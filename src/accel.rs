@@ -368,6 +368,9 @@ impl Accel {
         // With `EXACT`, the best hit's distance in f64, its error bound and
         // its triangle (`intersect_exact`).
         let (mut best_t64, mut best_err, mut best_tri) = (*t_max as f64, 0.0, [Vec3A::ZERO; 3]);
+        // Without `EXACT`, the best hit's distance and slot. (Any hit will
+        // do for occlusion: no tie to settle, so no reach past t_max.)
+        let mut closest = if ANY_HIT { Closest::before(*t_max) } else { Closest::new(*t_max) };
         // The root as the only inner child of a virtual parent.
         let mut nodes = (0u32, 0x8000_0000u32);
         loop {
@@ -384,7 +387,7 @@ impl Accel {
                 let node = &self.bvh.nodes[child as usize];
                 // (f32 rounding of an f64 distance, and a box test with a
                 // slack, admit the hits at t_max; `EXACT_REACH` more is to spare.)
-                let reach = if EXACT { *t_max * (1.0 + EXACT_REACH) } else { *t_max };
+                let reach = if EXACT { *t_max * (1.0 + EXACT_REACH) } else { closest.reach };
                 let hit_mask = intersect_node(node, r, reach, oct_inv4);
                 nodes = (node.child_base_idx, (hit_mask & 0xff00_0000) | node.imask as u32);
                 let base = node.primitive_base_idx;
@@ -407,10 +410,8 @@ impl Accel {
                         }
                         continue;
                     }
-                    if let Some((lane, b1, b2, edge_error)) =
-                        r.intersect_block(&self.blocks[block as usize], lanes, t_max)
-                    {
-                        best = Some((4 * block + lane, b1, b2, edge_error));
+                    if let Some(hit) = r.intersect_block(&self.blocks[block as usize], 4 * block, lanes, &mut closest) {
+                        best = Some(hit);
                         if ANY_HIT {
                             return best;
                         }
@@ -420,7 +421,12 @@ impl Accel {
             if nodes.1 & 0xff00_0000 == 0 {
                 match stack.pop() {
                     Some(g) => nodes = g,
-                    None => return best,
+                    None => {
+                        if !EXACT {
+                            *t_max = closest.t;
+                        }
+                        return best;
+                    }
                 }
             }
         }
@@ -564,9 +570,68 @@ pub fn intersect_triangle(ray: &Ray, tri: &[Vec3A; 3], t_max: f32) -> Option<(f3
     if is_degenerate(tri) {
         return None;
     }
-    let mut t = t_max;
-    let (_, b1, b2, _) = PreparedRay::new(ray)?.intersect_block(&TriangleBlock::new([*tri].into_iter()), 1, &mut t)?;
-    Some((t, b1, b2))
+    let mut closest = Closest::new(t_max);
+    let (_, b1, b2, _) =
+        PreparedRay::new(ray)?.intersect_block(&TriangleBlock::new([*tri].into_iter()), 0, 1, &mut closest)?;
+    Some((closest.t, b1, b2))
+}
+
+/// The closest hit so far of a traversal in f32: its distance `t` and
+/// `slot` (at first t_max and none), and the `reach` of the range tests of
+/// triangles and nodes, t (1 + 2^-21).
+///
+/// A hit is taken if it is closer, or as close and in a lower slot: the
+/// least (t, slot) wins, whatever the order in which the traversal meets
+/// the hits, so a ray finds the same triangle alone and in a packet, whose
+/// order follows another lane's octant (`packet.rs`). At an exact tie (two
+/// coincident triangles: a duplicated face, a decal) the lone ray took the
+/// last of a block's tied triangles and the packet the first, so a pixel's
+/// colour hung on whether its samples went in packets, which hangs on where
+/// a render's sample range starts (a part, a resume; from an audit,
+/// session 50).
+///
+/// The reach lets every hit as close as the best pass the range test
+/// `ts < reach |det|` (`lanes::watertight`): t = ts / |det| rounded three
+/// times (the reciprocal, the product, and ts) is within (1 + 2u)
+/// of ts / |det| (u = 2^-24), and fl(reach |det|) >= t (1 + 8u)(1 - u)^2
+/// |det| > t (1 + 2u) |det| >= ts, for normal floats. Tested against the
+/// best t itself, a tie passed or not by the luck of rounding, and so by
+/// the order. Nodes are entered within the same reach: a tie in another
+/// leaf is met unless the f32 distances err by more than 2^-21 of
+/// themselves (a ray grazing the triangles).
+#[derive(Clone, Copy)]
+pub(crate) struct Closest {
+    pub t: f32,
+    slot: u32,
+    pub reach: f32,
+}
+
+/// 1 + 2^-21: `Closest::reach` over t.
+const TIE_REACH: f32 = 1.0 + 1.0 / (1u32 << 21) as f32;
+
+impl Closest {
+    #[inline(always)]
+    pub fn new(t_max: f32) -> Self {
+        // (Slot 0 takes no tie with t_max: no slot is below it.)
+        Self { t: t_max, slot: 0, reach: t_max * TIE_REACH }
+    }
+
+    /// `new`'s, for a search that stops at the first hit: no reach past
+    /// t_max, as no tie is settled.
+    #[inline(always)]
+    pub fn before(t_max: f32) -> Self {
+        Self { t: t_max, slot: 0, reach: t_max }
+    }
+
+    /// Whether the hit (t, slot) is the closest so far; if so it becomes it.
+    #[inline(always)]
+    pub fn takes(&mut self, t: f32, slot: u32) -> bool {
+        let closer = t < self.t || (t == self.t && slot < self.slot);
+        if closer {
+            *self = Self { t, slot, reach: t * TIE_REACH };
+        }
+        closer
+    }
 }
 
 /// The margin, as a fraction of t_max, by which an exact traversal
@@ -708,21 +773,27 @@ impl PreparedRay {
     }
 
     /// The watertight test (`lanes::watertight`) on the four triangles of a
-    /// block at once, one per lane, for the lanes set in `lanes`.
+    /// block at once, one per lane, for the lanes set in `lanes`; the
+    /// block's first slot is `first`.
     ///
-    /// The hits are met from the highest lane down, as a loop over the
-    /// slots one triangle at a time would meet them: each shortens `t_max`,
-    /// and the last, the closest, is returned as (lane, b1, b2). The lanes
-    /// are tested against the `t_max` of the call and the few that pass are
-    /// checked again against the shortened one, which accepts the same hits
-    /// as testing each against it (t_max only shrinks, and a rounded product
-    /// t_max |det| is monotonic in t_max). A lane whose t is within its
-    /// rounding error of 0 (`Candidates::near`) passes the same range test
-    /// and then takes its t from the f64 test, if that finds it ahead (so
-    /// a segment shorter than that error, whose f32 t reaches t_max, still
-    /// misses what lies within it).
+    /// Each hit that `closest` takes (`Closest::takes`) becomes it; the
+    /// last so taken is returned as (slot, b1, b2, edge_error). The lanes
+    /// are tested against the reach of the call and the few that pass are
+    /// checked again against the reach of the best hit so far, which
+    /// accepts the same hits as testing each against it (the reach only
+    /// shrinks, and a rounded product reach |det| is monotonic in it). A
+    /// lane whose t is within its rounding error of 0 (`Candidates::near`)
+    /// passes the same range test and then takes its t from the f64 test,
+    /// if that finds it ahead (so a segment shorter than that error, whose
+    /// f32 t reaches t_max, still misses what lies within it).
     #[inline(always)]
-    fn intersect_block(&self, block: &TriangleBlock, lanes: u32, t_max: &mut f32) -> Option<(u32, f32, f32, f32)> {
+    fn intersect_block(
+        &self,
+        block: &TriangleBlock,
+        first: u32,
+        lanes: u32,
+        closest: &mut Closest,
+    ) -> Option<(u32, f32, f32, f32)> {
         // (`min` tells the compiler the rows are in bounds.)
         let [kx, ky, kz] = self.k.map(|k| k.min(2));
         let splat = Vec4::splat;
@@ -734,7 +805,7 @@ impl PreparedRay {
         let sheared = |k, o: f32, s: Vec4, j: usize| (block.row(k, j) - splat(o)) - s * z[j];
         let x = [sheared(kx, self.o_k.x, sx, 0), sheared(kx, self.o_k.x, sx, 1), sheared(kx, self.o_k.x, sx, 2)];
         let y = [sheared(ky, self.o_k.y, sy, 0), sheared(ky, self.o_k.y, sy, 1), sheared(ky, self.o_k.y, sy, 2)];
-        let c = lanes::watertight(x, y, z, splat(sz), splat(*t_max), lanes)?;
+        let c = lanes::watertight(x, y, z, splat(sz), splat(closest.reach), lanes)?;
         let mut candidates = c.mask | c.near;
         let (mut t, ts, ds) = (c.t.to_array(), c.ts.to_array(), c.ds.to_array());
         let (b1, b2, edge_error) = (c.b1.to_array(), c.b2.to_array(), c.edge_error.to_array());
@@ -744,10 +815,9 @@ impl PreparedRay {
             candidates &= !(1 << lane);
             let l = lane as usize;
             let sure = c.mask >> lane & 1 != 0;
-            let taken = ts[l] < *t_max * ds[l] && (sure || self.near_hit(block, l, &mut t[l]));
-            if taken && t[l] < *t_max {
-                *t_max = t[l];
-                hit = Some((lane, b1[l], b2[l], edge_error[l]));
+            let taken = ts[l] < closest.reach * ds[l] && (sure || self.near_hit(block, l, &mut t[l]));
+            if taken && closest.takes(t[l], first + lane) {
+                hit = Some((first + lane, b1[l], b2[l], edge_error[l]));
             }
         }
         hit
@@ -1112,10 +1182,9 @@ mod tests {
         }
     }
 
-    /// Four triangles in one block give the hits each gives alone, met from
-    /// the highest lane down with the running t_max, as the loop over slots
-    /// of a one-triangle test would: lanes do not leak into each other, and
-    /// the closest hit wins. The triangles are stacked across the ray so most
+    /// Four triangles in one block give the hits each gives alone, met
+    /// one at a time with a running `Closest`: lanes do not leak into each
+    /// other, and the closest hit wins. The triangles are stacked across the ray so most
     /// rays pass several, and some share vertices on a grid, so that rays
     /// through those vertices reach the double-precision step.
     #[test]
@@ -1150,17 +1219,18 @@ mod tests {
             let Some(pre) = PreparedRay::new(&ray) else { continue };
             let lanes = 1 + (f() * 15.0) as u32;
             let t0 = if i % 5 == 0 { 3.0 } else { f32::INFINITY };
-            let mut t_block = t0;
-            let got = pre.intersect_block(&block, lanes, &mut t_block);
-            let (mut t_one, mut want, mut hits) = (t0, None, 0);
+            let mut in_block = Closest::new(t0);
+            let got = pre.intersect_block(&block, 0, lanes, &mut in_block);
+            let (mut one_by_one, mut want, mut hits) = (Closest::new(t0), None, 0);
             for lane in (0..4).rev().filter(|l| lanes >> l & 1 != 0) {
                 let alone = TriangleBlock::new([tris[lane as usize]].into_iter());
-                if let Some((_, b1, b2, edge_error)) = pre.intersect_block(&alone, 1, &mut t_one) {
+                if let Some((_, b1, b2, edge_error)) = pre.intersect_block(&alone, lane, 1, &mut one_by_one) {
                     want = Some((lane, b1, b2, edge_error));
                 }
                 hits += intersect_triangle(&ray, &tris[lane as usize], t0).is_some() as u32;
             }
-            assert_eq!((got, t_block.to_bits()), (want, t_one.to_bits()), "case {i}: {ray:?} lanes {lanes:b} {tris:?}");
+            let t = |c: Closest| c.t.to_bits();
+            assert_eq!((got, t(in_block)), (want, t(one_by_one)), "case {i}: {ray:?} lanes {lanes:b} {tris:?}");
             several += (hits > 1) as u32;
         }
         assert!(several > 2000, "only {several} rays hit more than one triangle: test too weak");
@@ -1173,16 +1243,16 @@ mod tests {
         let (left, right) = ([Vec3A::new(1.0, -1.0, 0.0), b, c], [Vec3A::new(-1.0, 1.0, 0.0), c, b]);
         let pre = PreparedRay::new(&Ray::new(Vec3A::new(0.0, 0.0, 1.0), -Vec3A::Z)).unwrap();
         let alone = |tri: [Vec3A; 3]| {
-            let mut t = f32::INFINITY;
-            pre.intersect_block(&TriangleBlock::new([tri].into_iter()), 1, &mut t).map(|h| (h.1, h.2, h.3))
+            let mut closest = Closest::new(f32::INFINITY);
+            pre.intersect_block(&TriangleBlock::new([tri].into_iter()), 0, 1, &mut closest).map(|h| (h.1, h.2, h.3))
         };
         let (hit_left, hit_right) = (alone(left), alone(right));
         assert!(hit_left.is_some() != hit_right.is_some(), "exactly one of the two is hit");
         for (l, r) in (0..4).flat_map(|l| (0..4).filter(move |&r| r != l).map(move |r| (l, r))) {
             let mut tris = [[Vec3A::splat(9.0), Vec3A::new(9.0, 10.0, 9.0), Vec3A::new(10.0, 9.0, 9.0)]; 4];
             (tris[l], tris[r]) = (left, right);
-            let mut t = f32::INFINITY;
-            let got = pre.intersect_block(&TriangleBlock::new(tris.into_iter()), 0xf, &mut t);
+            let mut closest = Closest::new(f32::INFINITY);
+            let got = pre.intersect_block(&TriangleBlock::new(tris.into_iter()), 0, 0xf, &mut closest);
             let want = hit_left.map(|h| (l as u32, h.0, h.1, h.2)).or(hit_right.map(|h| (r as u32, h.0, h.1, h.2)));
             assert_eq!(got, want, "left in lane {l}, right in lane {r}");
         }

@@ -488,6 +488,38 @@ fn grown_parts_and_ignored_options_merge() {
     let _ = std::fs::remove_dir_all(&d);
 }
 
+/// Parts of a render merge into the bits of the whole render where its
+/// surfaces tie: two coincident quads, one red and one green, meet every
+/// camera ray at one distance. A lone sample (a part of one sample per
+/// pixel) and a packet of samples (the whole render) must settle the tie
+/// alike (`accel::Closest`; they took different quads until session 50).
+#[test]
+fn parts_of_coincident_faces_merge_into_the_whole_render() {
+    let d = temp_dir("ties");
+    let path = |name: &str| d.join(name).display().to_string();
+    let quad = r#"{"type": "quad", "corners": [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]]}"#;
+    let scene = write(
+        &d,
+        "s.json",
+        &format!(
+            r#"{{
+  "camera": {{"position": [0, 0, -3], "look_at": [0, 0, 0], "fov": 30, "width": 4, "height": 4}},
+  "materials": {{"red": {{"type": "diffuse", "reflectance": {{"rgb": [0.8, 0.1, 0.1]}}}},
+                "green": {{"type": "diffuse", "reflectance": {{"rgb": [0.1, 0.8, 0.1]}}}}}},
+  "objects": [{{"shape": {quad}, "material": "red"}}, {{"shape": {quad}, "material": "green"}}],
+  "lights": [{{"type": "environment", "radiance": 1.0}}]
+}}"#
+        ),
+    );
+    render_ok(&scene, &["--sample-range", "0..1", "--out", &path("p0.exr")]);
+    render_ok(&scene, &["--sample-range", "1..2", "--out", &path("p1.exr")]);
+    let o = prism(&["merge", &path("parts.exr"), &path("p0.exr"), &path("p1.exr")]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    render_ok(&scene, &["--spp", "2", "--out", &path("whole.exr")]);
+    assert_eq!(std::fs::read(d.join("parts.exr")).unwrap(), std::fs::read(d.join("whole.exr")).unwrap());
+    let _ = std::fs::remove_dir_all(&d);
+}
+
 /// A part or a resume of a scene whose mesh file changed is another
 /// scene's: merge and resume refuse it by `scene_hash`, which covers the
 /// files the scene reads, not only the scene file (only that was hashed;
