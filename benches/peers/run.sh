@@ -142,19 +142,33 @@ rm -f "$OUT"/runs/*.json "$OUT"/rounds/*.json
 # AVX-512), prism is built for a fixed level (.cargo/config.toml), so the
 # ratios depend on the host's vector ISA (docs/performance-log.md, "Session 16").
 cpu_field() { sed -n "s/^$1[[:space:]]*: *//p" /proc/cpuinfo | head -1; }
+# Both renderers on the same N CPUs where the host has more: the thread
+# that waits on a Dr.Jit task helps with its work (nanothread's task_wait),
+# so Mitsuba could run N + 1 threads against prism's N (from an audit,
+# session 50; on a host of N CPUs nothing changes).
+pinned() { # N COMMAND...: COMMAND on CPUs 0..N-1 where the host has more than N
+    local n=$1
+    shift
+    if (( $(nproc) > n )) && command -v taskset >/dev/null; then
+        taskset -c "0-$((n - 1))" "$@"
+    else
+        "$@"
+    fi
+}
+PINNED=$( (( $(nproc) > THREADS )) && command -v taskset >/dev/null && echo true || echo false)
 DRJIT_IR=$("$PY" -c 'import drjit as dr; dr.set_log_level(dr.LogLevel.Trace); dr.eval(dr.llvm.Float(1, 2) + 1)' 2>&1 || true)
 "$PY" - "$OUT/machine.json" <<PYEOF
 import json, sys
 flags = set("$(cpu_field flags)".split())
 json.dump({
     "cpu": "$(cpu_field 'model name')", "cpu_family": "$(cpu_field 'cpu family')", "cpu_model": "$(cpu_field model)",
-    "cpus": $(nproc), "load_at_start": "$(cut -d' ' -f1-3 /proc/loadavg)",
+    "cpus": $(nproc), "pinned": $( [[ $PINNED == true ]] && echo True || echo False), "load_at_start": "$(cut -d' ' -f1-3 /proc/loadavg)",
     "isa": [f for f in ("avx2", "fma", "avx512f", "avx512vl") if f in flags],
     "drjit_target_cpu": "$(grep -o '"target-cpu"="[^"]*"' <<<"$DRJIT_IR" | head -1 | cut -d'"' -f4)",
     "drjit_float_lanes": "$(grep -o '<[0-9]* x float>' <<<"$DRJIT_IR" | head -1 | tr -dc 0-9)",
 }, open(sys.argv[1], "w"), indent=2)
 PYEOF
-echo "== machine: $(cpu_field 'model name') (family $(cpu_field 'cpu family'), model $(cpu_field model)), $(nproc) CPUs, load $(cut -d' ' -f1-3 /proc/loadavg)"
+echo "== machine: $(cpu_field 'model name') (family $(cpu_field 'cpu family'), model $(cpu_field model)), $(nproc) CPUs, load $(cut -d' ' -f1-3 /proc/loadavg)$( [[ $PINNED == true ]] && echo "; renders pinned to CPUs 0-$((THREADS - 1))")"
 echo "== vector ISA: $("$PY" -c 'import json, sys; m = json.load(open(sys.argv[1])); print(" ".join(m["isa"]) + "; Dr.Jit compiles for", m["drjit_target_cpu"], "with", m["drjit_float_lanes"], "float lanes")' "$OUT/machine.json")"
 echo "== $("$PY" -c 'import mitsuba, drjit; print("mitsuba", mitsuba.__version__, "drjit", drjit.__version__, "libLLVM", ".".join(map(str, drjit.detail.llvm_version())))')"
 
@@ -189,7 +203,7 @@ PYEOF
 prism_run() { # KEY INTEGRATOR ROUND [BINARY]
     local exr="$OUT/images/$1-r$3.exr" t bin=${4:-$PRISM}
     t=$(mktemp)
-    /usr/bin/time -f '%U %S' -o "$t" "$bin" render "$SCENE" --integrator "$2" --spp "$SPP" --width "$RES" \
+    pinned "$THREADS" /usr/bin/time -f '%U %S' -o "$t" "$bin" render "$SCENE" --integrator "$2" --spp "$SPP" --width "$RES" \
         --height "$RES" --threads "$THREADS" --seed "$3" --quiet --out "$exr"
     local json
     json=$("$PY" - "$exr" "$t" "$1" "$2" <<'PYEOF'
@@ -215,7 +229,7 @@ mitsuba_run() { # KEY VARIANT INTEGRATOR ROUND [--avx2]
     # Kernels compiled for another target are cached apart from the host's.
     local cache=()
     [[ -n ${5:-} ]] && cache=("DRJIT_CACHE_DIR=$OUT/drjit-cache-avx2")
-    raw=$(env "${cache[@]}" "$PY" benches/peers/mitsuba_render.py "$OUT/mitsuba-scene/scene.xml" \
+    raw=$(pinned "$THREADS" env "${cache[@]}" "$PY" benches/peers/mitsuba_render.py "$OUT/mitsuba-scene/scene.xml" \
         --variant "$2" --integrator "$3" --spp "$SPP" --width "$RES" --height "$RES" --threads "$THREADS" \
         --repeat "$repeat" --seed $(( ($4 - 1) * repeat )) --out "$exr" ${5:-})
     local json
@@ -274,8 +288,8 @@ thread_counts=$(printf '%s\n' 1 "$THREADS" | sort -un)
 [[ $RAYS == 1 ]] || thread_counts=
 for t in $thread_counts; do
     echo "== rays alone, $t thread(s)"
-    target/release/examples/peer_rays "$SCENE" "$OUT/rays/rays.f32" "$t" >"$OUT/rays/prism-$t.tmp"
-    "$PY" benches/peers/mitsuba_rays.py "$OUT/mitsuba-scene/scene.xml" "$OUT/rays/rays.f32" "$t" \
+    pinned "$t" target/release/examples/peer_rays "$SCENE" "$OUT/rays/rays.f32" "$t" >"$OUT/rays/prism-$t.tmp"
+    pinned "$t" "$PY" benches/peers/mitsuba_rays.py "$OUT/mitsuba-scene/scene.xml" "$OUT/rays/rays.f32" "$t" \
         >"$OUT/rays/mitsuba-$t.tmp"
     mv "$OUT/rays/prism-$t.tmp" "$OUT/rays/prism-$t.json"
     mv "$OUT/rays/mitsuba-$t.tmp" "$OUT/rays/mitsuba-$t.json"
