@@ -26,8 +26,10 @@ use crate::strategies::{StrategyImages, StrategyRecord, TaskStrategies};
 use glam::{UVec2, Vec2, Vec3, Vec4};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::ThreadPool;
+use std::cell::RefCell;
 use std::collections::BTreeMap;
 use std::ops::Range;
+use std::rc::Rc;
 use std::sync::{Condvar, Mutex};
 use std::time::{Duration, Instant};
 
@@ -240,12 +242,30 @@ fn spawn_when_the_last_has_started(thread: rayon::ThreadBuilder) -> std::io::Res
 /// it, whatever was allocated before; its pages are never touched.
 const HEADROOM: usize = 33 << 20;
 
-fn thread_pool(opts: &RenderOptions) -> ThreadPool {
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(opts.threads)
-        .spawn_handler(spawn_when_the_last_has_started)
-        .build()
-        .expect("thread pool")
+/// The calling thread's pool of `opts.threads` workers, made at its first
+/// render and kept for the next: passes, checkpoint chunks and converge's
+/// slices reuse it. A pool made per call left the last one's threads to
+/// exit on their own time (rayon does not join them), and under a limit on
+/// threads or address space the next pool could fail to start: a panic
+/// after passes were rendered (from an audit, session 50). Kept per
+/// calling thread, not per process, so that renders started at once from
+/// several threads (tests) never share workers.
+fn thread_pool(opts: &RenderOptions) -> Rc<ThreadPool> {
+    thread_local! {
+        static POOL: RefCell<Option<(usize, Rc<ThreadPool>)>> = const { RefCell::new(None) };
+    }
+    POOL.with_borrow_mut(|kept| match kept {
+        Some((threads, pool)) if *threads == opts.threads => pool.clone(),
+        _ => {
+            *kept = None;
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(opts.threads)
+                .spawn_handler(spawn_when_the_last_has_started)
+                .build()
+                .expect("thread pool");
+            kept.insert((opts.threads, Rc::new(pool))).1.clone()
+        }
+    })
 }
 
 /// The image's tiles (origin, size) in row-major order.
@@ -645,6 +665,21 @@ fn merge_task(film: &mut Film, out: TaskOutput) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// One thread's renders reuse its pool while the thread count stays,
+    /// and another thread's get their own.
+    #[test]
+    fn renders_of_a_thread_share_its_pool() {
+        let opts = |threads| RenderOptions { seed: 0, threads, progress: false };
+        let address = |p: &Rc<ThreadPool>| Rc::as_ptr(p) as usize;
+        let first = thread_pool(&opts(2));
+        assert!(Rc::ptr_eq(&first, &thread_pool(&opts(2))));
+        assert_eq!(first.current_num_threads(), 2);
+        let other = thread_pool(&opts(3));
+        assert_eq!(other.current_num_threads(), 3);
+        let elsewhere = std::thread::spawn(move || address(&thread_pool(&opts(3)))).join().unwrap();
+        assert_ne!(elsewhere, address(&other), "another thread's render shared this one's pool");
+    }
 
     /// Every (pixel, sample index) of a render is in exactly one task, a
     /// task's run starts on a packet boundary and is at most `MAX_RUN`
