@@ -9,7 +9,10 @@ use std::f32::consts::{FRAC_1_PI, FRAC_PI_2, PI};
 
 /// The random stream of one sample. Every (seed, stream, index) triple gets an
 /// independent generator, so a pixel's samples (or a light path) draw the same
-/// numbers whatever thread runs them and in whatever order.
+/// numbers whatever thread runs them and in whatever order. (Independent up
+/// to its 64-bit key: among 2^40 samples, a 1024^2 image at 2^20 spp, about
+/// 2^15 pairs share one by the birthday bound, and each pair's share of a
+/// pixel, 2^-20 of its samples, is far below the pixel's noise.)
 ///
 /// The generator is xoshiro256++ (Blackman & Vigna 2021), whose every output
 /// bit is of full quality: one 64-bit step gives a 2D point's two 24-bit
