@@ -51,8 +51,9 @@ pub struct CameraWiSample {
 
 impl Camera {
     /// `fov_y_deg` is the full vertical field of view. Looking along
-    /// `look_at - position`, screen right is forward x up, so in a left-handed
-    /// scene convention (the Cornell box data) +x appears on the left.
+    /// `look_at - position`, screen right is forward x up: looking along +z
+    /// with +y up (the Cornell box data), +x appears on the left, as in
+    /// right-handed coordinates.
     /// `look_at` and `up` must give a `frame` (loaders check first); the
     /// camera of one that does not has a NaN basis.
     pub fn new(position: Vec3A, look_at: Vec3A, up: Vec3A, fov_y_deg: f32, width: u32, height: u32) -> Self {
