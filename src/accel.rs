@@ -591,14 +591,20 @@ pub fn intersect_triangle(ray: &Ray, tri: &[Vec3A; 3], t_max: f32) -> Option<(f3
 /// session 50).
 ///
 /// The reach lets every hit as close as the best pass the range test
-/// `ts < reach |det|` (`lanes::watertight`): t = ts / |det| rounded three
-/// times (the reciprocal, the product, and ts) is within (1 + 2u)
-/// of ts / |det| (u = 2^-24), and fl(reach |det|) >= t (1 + 8u)(1 - u)^2
-/// |det| > t (1 + 2u) |det| >= ts, for normal floats. Tested against the
-/// best t itself, a tie passed or not by the luck of rounding, and so by
-/// the order. Nodes are entered within the same reach: a tie in another
-/// leaf is met unless the f32 distances err by more than 2^-21 of
-/// themselves (a ray grazing the triangles).
+/// `ts < reach |det|` (`lanes::watertight`): t is fl(ts fl(1 / |det|)),
+/// two roundings of ts / |det|, so ts / |det| <= t (1 + u)^2 (u = 2^-24),
+/// and fl(reach |det|) >= t (1 + 8u)(1 - u)^2 |det|, which is above
+/// t (1 + u)^2 |det| and so above ts, for every hit whose t is at most the
+/// best's (normal floats; a reach of infinity passes all). Tested against the best t itself, a
+/// tie passed or not by the luck of rounding, and so by the order.
+///
+/// Two cases are left to the order, both rare. Nodes are entered within
+/// the same reach, so a tie in another leaf is met unless the f32
+/// distances err by more than 2^-21 of themselves (a ray grazing the
+/// triangles). And a hit within rounding of the ray's origin
+/// (`Candidates::near`) passes the range test on its f32 distance but
+/// ranks by its f64 one, so of two such hits (a ray leaving a corner
+/// within rounding of both faces) the order can decide.
 #[derive(Clone, Copy)]
 pub(crate) struct Closest {
     pub t: f32,

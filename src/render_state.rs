@@ -312,8 +312,10 @@ fn coalesce(ranges: impl Iterator<Item = Range<u32>>) -> Vec<Range<u32>> {
 pub struct SceneFingerprint {
     pub name: String,
     /// FNV-1a 64, in hex, of the scene file's bytes followed, for each file
-    /// it reads (`SceneBuilder::inputs`: meshes, buffers, images, included
-    /// glTF), by that file's length (8 bytes, little-endian) and bytes. A
+    /// it reads or names (`SceneBuilder::inputs`: meshes, buffers, images,
+    /// included glTF), by that file's length (8 bytes, little-endian) and
+    /// bytes, or 2^64 - 1 for one it cannot read (a glTF may name an image
+    /// no material uses, or one missing, which the loader warns of). A
     /// scene that reads no other file keeps the hash of its own bytes.
     pub hash: String,
 }
@@ -324,11 +326,13 @@ impl SceneFingerprint {
     /// between a checkpoint and its resume, is a different scene (only the
     /// scene file was hashed; from an audit, session 50).
     pub fn read(path: &Path, inputs: &[PathBuf]) -> Result<Self> {
-        let read = |p: &Path| std::fs::read(p).with_context(|| format!("cannot read {}", p.display()));
-        let mut hash = fnv1a_from(FNV1A_BASIS, &read(path)?);
+        let scene = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+        let mut hash = fnv1a_from(FNV1A_BASIS, &scene);
         for input in inputs {
-            let bytes = read(input)?;
-            hash = fnv1a_from(fnv1a_from(hash, &(bytes.len() as u64).to_le_bytes()), &bytes);
+            hash = match std::fs::read(input) {
+                Ok(bytes) => fnv1a_from(fnv1a_from(hash, &(bytes.len() as u64).to_le_bytes()), &bytes),
+                Err(_) => fnv1a_from(hash, &u64::MAX.to_le_bytes()),
+            };
         }
         Ok(SceneFingerprint { name: path.display().to_string(), hash: format!("{hash:016x}") })
     }

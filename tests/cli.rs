@@ -488,6 +488,24 @@ fn grown_parts_and_ignored_options_merge() {
     let _ = std::fs::remove_dir_all(&d);
 }
 
+/// A glTF scene that names an image it cannot read renders, warning of
+/// it (the loader uses the material's factor alone): the scene's identity,
+/// which hashes the files a scene names, counts such a file as missing
+/// rather than refusing the render (it did for a few commits of session
+/// 50; found by a review).
+#[test]
+fn a_gltf_naming_a_missing_image_still_renders() {
+    let d = temp_dir("missing-image");
+    let box_gltf = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/gltf/BoxTextured.gltf");
+    let mut gltf: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(box_gltf).unwrap()).unwrap();
+    gltf["images"][0]["uri"] = "missing.png".into();
+    let scene = write(&d, "box.gltf", &gltf.to_string());
+    let out = d.join("a.exr").display().to_string();
+    let e = render_ok(&scene, &["--spp", "1", "--width", "8", "--height", "8", "--out", &out]);
+    assert!(e.contains("missing.png"), "no warning names the image: {e}");
+    let _ = std::fs::remove_dir_all(&d);
+}
+
 /// Parts of a render merge into the bits of the whole render where its
 /// surfaces tie: two coincident quads, one red and one green, meet every
 /// camera ray at one distance. A lone sample (a part of one sample per

@@ -8,7 +8,7 @@ mod scenes;
 
 use scenes::temp_dir;
 
-use prism::converge::{run, Clock, ConvergeConfig, ConvergeResults, IntegratorSpec, ReferenceSource};
+use prism::converge::{next_grid_spp, run, Clock, ConvergeConfig, ConvergeResults, IntegratorSpec, ReferenceSource};
 use prism::output::write_exr;
 use prism::spectrum::Spectrum;
 use std::path::{Path, PathBuf};
@@ -168,7 +168,7 @@ fn rel_mse_falls_as_one_over_spp_in_the_white_room() {
 }
 
 #[test]
-fn grid_checkpoints_are_reproducible_and_the_time_budget_holds() {
+fn grid_checkpoints_are_reproducible_and_a_time_budget_ends_the_run() {
     let d = temp_dir("determinism");
     let res = 16;
     let exact = white_room_reference(&d, res);
@@ -207,6 +207,13 @@ fn grid_checkpoints_are_reproducible_and_the_time_budget_holds() {
             let n = x.spp as f64;
             assert!(*last > n / (n + 1.0), "{}: stopped at {n} spp in {last} s of a 1 s budget", x.label);
             assert_eq!(x.seconds, *last);
+            // And no slice past the grid's next point: one cut short by
+            // the budget is off the grid, and every later one.
+            for w in x.checkpoints.windows(2) {
+                let (a, b) = (w[0], w[1]);
+                assert!(a.spp < b.spp && b.spp <= next_grid_spp(a.spp), "{}: {} -> {} spp", x.label, a.spp, b.spp);
+                assert_eq!(b.by_spp, a.by_spp && b.spp == next_grid_spp(a.spp), "{}: {} spp", x.label, b.spp);
+            }
         }
     }
     std::fs::remove_dir_all(&d).unwrap();

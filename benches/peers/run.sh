@@ -142,20 +142,22 @@ rm -f "$OUT"/runs/*.json "$OUT"/rounds/*.json
 # AVX-512), prism is built for a fixed level (.cargo/config.toml), so the
 # ratios depend on the host's vector ISA (docs/performance-log.md, "Session 16").
 cpu_field() { sed -n "s/^$1[[:space:]]*: *//p" /proc/cpuinfo | head -1; }
-# Both renderers on the same N CPUs where the host has more: the thread
-# that waits on a Dr.Jit task helps with its work (nanothread's task_wait),
-# so Mitsuba could run N + 1 threads against prism's N (from an audit,
-# session 50; on a host of N CPUs nothing changes).
-pinned() { # N COMMAND...: COMMAND on CPUs 0..N-1 where the host has more than N
+# Where the host has more CPUs than THREADS, every timed run is pinned to
+# as many CPUs as it has threads (the first of those this process may
+# use): the thread that waits on a Dr.Jit task helps with its work
+# (nanothread's task_wait), so unpinned, Mitsuba could run THREADS + 1
+# threads against prism's THREADS (from an audit, session 50). On a host
+# of THREADS CPUs nothing is pinned.
+PINNED=$( (( $(nproc) > THREADS )) && command -v taskset >/dev/null && echo true || echo false)
+pinned() { # N COMMAND...: COMMAND on N CPUs if PINNED
     local n=$1
     shift
-    if (( $(nproc) > n )) && command -v taskset >/dev/null; then
-        taskset -c "0-$((n - 1))" "$@"
+    if [[ $PINNED == true ]]; then
+        taskset -c "$("$PY" -c 'import os, sys; print(",".join(map(str, sorted(os.sched_getaffinity(0))[:int(sys.argv[1])])))' "$n")" "$@"
     else
         "$@"
     fi
 }
-PINNED=$( (( $(nproc) > THREADS )) && command -v taskset >/dev/null && echo true || echo false)
 DRJIT_IR=$("$PY" -c 'import drjit as dr; dr.set_log_level(dr.LogLevel.Trace); dr.eval(dr.llvm.Float(1, 2) + 1)' 2>&1 || true)
 "$PY" - "$OUT/machine.json" <<PYEOF
 import json, sys
@@ -168,7 +170,7 @@ json.dump({
     "drjit_float_lanes": "$(grep -o '<[0-9]* x float>' <<<"$DRJIT_IR" | head -1 | tr -dc 0-9)",
 }, open(sys.argv[1], "w"), indent=2)
 PYEOF
-echo "== machine: $(cpu_field 'model name') (family $(cpu_field 'cpu family'), model $(cpu_field model)), $(nproc) CPUs, load $(cut -d' ' -f1-3 /proc/loadavg)$( [[ $PINNED == true ]] && echo "; renders pinned to CPUs 0-$((THREADS - 1))")"
+echo "== machine: $(cpu_field 'model name') (family $(cpu_field 'cpu family'), model $(cpu_field model)), $(nproc) CPUs, load $(cut -d' ' -f1-3 /proc/loadavg)$( [[ $PINNED == true ]] && echo "; timed runs pinned to as many CPUs as they have threads")"
 echo "== vector ISA: $("$PY" -c 'import json, sys; m = json.load(open(sys.argv[1])); print(" ".join(m["isa"]) + "; Dr.Jit compiles for", m["drjit_target_cpu"], "with", m["drjit_float_lanes"], "float lanes")' "$OUT/machine.json")"
 echo "== $("$PY" -c 'import mitsuba, drjit; print("mitsuba", mitsuba.__version__, "drjit", drjit.__version__, "libLLVM", ".".join(map(str, drjit.detail.llvm_version())))')"
 

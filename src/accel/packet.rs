@@ -9,8 +9,10 @@
 //! slab products and sums, the same watertight test with the same axis
 //! permutation, chosen per lane by selects), so a lane accepts exactly the
 //! hits the single ray accepts. Only the order in which a packet meets
-//! them differs, and it decides nothing: the least (t, slot) wins either
-//! way (`Closest`), so a tie goes to the same triangle.
+//! them differs, and ties do not hang on it: the least (t, slot) wins
+//! either way (`Closest`), but for two rare cases `Closest` names (hits
+//! within rounding of the origin, and ties in another leaf for grazing
+//! rays).
 //!
 //! Packets pay for coherent rays only (docs/performance-log.md, "Session 20"):
 //! a pixel's camera rays trace 2.9x faster than one at a time, incoherent
@@ -160,8 +162,6 @@ impl<'a> PreparedPacket<'a> {
     }
 }
 
-/// The packet's best hits so far: per lane the distance, the slot and the
-/// barycentrics of the closest triangle found.
 /// Each lane's `Closest`, with its hit's barycentrics and edge error.
 struct Hits {
     t: f32x8,
@@ -348,7 +348,8 @@ mod tests {
 
     /// Every lane of a packet finds what its ray finds alone: the same
     /// triangle at the same distance, bit for bit, ties included (the least
-    /// (t, slot) wins, `Closest`); inactive lanes find nothing. The sphere
+    /// (t, slot) wins, `Closest`; none of these rays meets its cases
+    /// apart); inactive lanes find nothing. The sphere
     /// is there twice, each triangle coincident with its copy, so every ray
     /// that meets it meets an exact tie. (Until session 50 a tie went to the
     /// first triangle the traversal met, in an order that differs between

@@ -773,7 +773,7 @@ fn next_target(max_spp: Option<u32>, time: Option<f64>, n: u32, seconds: f64) ->
         }
         if fit < target as f64 {
             let fit = fit as u32;
-            let packed = fit - fit % LANES as u32;
+            let packed = n + (fit - n) / LANES as u32 * LANES as u32;
             return Some((if packed > n { packed } else { fit }, false));
         }
     }
@@ -927,6 +927,7 @@ mod tests {
         assert_eq!(budget(24, 0.875), Some((27, false)), "27 fit: no whole packet more");
         assert_eq!(budget(64, 0.875), Some((72, false)), "73 fit, short of the grid's 80");
         assert_eq!(budget(64, 0.75), Some((80, true)));
+        assert_eq!(budget(65, 0.875), Some((73, false)), "74 fit: one whole packet from 65");
         assert_eq!(budget(64, 0.99), None, "no whole sample fits");
         assert_eq!(budget(64, 1.0), None, "spent");
         assert_eq!(next_target(Some(20), Some(1.0), 16, 0.1), Some((20, true)), "the cap");

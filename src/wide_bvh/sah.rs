@@ -190,12 +190,13 @@ fn binned_split(refs: &[PrimRef], range: &Range) -> Option<Split> {
                 continue;
             }
             let cost = bounds.half_area() * count as f32 + right;
-            if best.is_none_or(|s| cost < s.cost) {
+            // (Not a cost past f32's range: a NaN, once kept, would stay.)
+            if cost.is_finite() && best.is_none_or(|s| cost < s.cost) {
                 best = Some(Split { axis, plane: Plane::Bin { grid, bin: b }, cost });
             }
         }
     }
-    best.filter(|s| s.cost.is_finite())
+    best
 }
 
 /// What a sweep sorts by: the (doubled) centroid on axes 0-2, the box's
