@@ -119,7 +119,10 @@ impl Mesh {
     }
 
     /// Applies `m` to positions, and its inverse transpose to normals
-    /// (renormalised). A mirroring transform (det < 0) also reverses the
+    /// (renormalised; a zero normal stays zero, as does one a singular `m`
+    /// takes to zero: NaN took the whole triangle's shading normal, where
+    /// untransformed the zero one drops out of the interpolation; from an
+    /// audit, session 50). A mirroring transform (det < 0) also reverses the
     /// winding, so the geometric normal keeps pointing the way the
     /// transformed shading normals do. The determinant and the inverse in
     /// f64: in f32 a scale of 1e-16 on every axis has a determinant of
@@ -132,7 +135,7 @@ impl Mesh {
         let m3 = m.matrix3.as_dmat3();
         let normal_matrix = m3.inverse().transpose();
         for n in &mut self.normals {
-            *n = (normal_matrix * n.as_dvec3()).normalize().as_vec3a();
+            *n = (normal_matrix * n.as_dvec3()).normalize_or_zero().as_vec3a();
         }
         if m3.determinant() < 0.0 {
             self.reverse_winding();
@@ -186,7 +189,20 @@ impl Mesh {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::{Mat3, Quat};
+    use glam::{Mat3, Quat, Vec3};
+
+    /// A zero shading normal stays zero under a transform, as untransformed
+    /// (it then drops out of the interpolation); it was renormalised to NaN,
+    /// which took the whole triangle's (from an audit, session 50).
+    #[test]
+    fn zero_normals_stay_zero_when_transformed() {
+        let mut m = Mesh::cuboid(Vec3A::ZERO, Vec3A::ONE);
+        m.normals = vec![Vec3A::Z; m.positions.len()];
+        m.normals[0] = Vec3A::ZERO;
+        m.transform(Affine3A::from_translation(Vec3::X));
+        assert_eq!(m.normals[0], Vec3A::ZERO);
+        assert!(m.normals[1..].iter().all(|&n| n == Vec3A::Z), "{:?}", m.normals);
+    }
 
     fn normal(t: &[Vec3A; 3]) -> Vec3A {
         (t[1] - t[0]).cross(t[2] - t[0]).normalize()

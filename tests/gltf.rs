@@ -574,6 +574,21 @@ fn json_scene_includes_gltf_with_material_overrides() {
     assert!(e.contains("aspectRatio 0 is not a positive number"), "{e}");
     let text = scene_text("{}", "").replace("Box.gltf", file.to_str().unwrap());
     parse_json(&text).unwrap();
+    // Nor its yfov or its node's transform, which the file refuses on its
+    // own too (they failed the include until session 50, an audit).
+    for what in ["yfov 0", "a zero scale"] {
+        let mut v = read_json(&dir().join("Cameras.gltf"));
+        match what {
+            "yfov 0" => v["cameras"][0]["perspective"]["yfov"] = json!(0.0),
+            _ => {
+                let n = v["nodes"].as_array().unwrap().iter().position(|n| n.get("camera").is_some()).unwrap();
+                v["nodes"][n]["scale"] = json!([0.0, 0.0, 0.0]);
+            }
+        }
+        std::fs::write(&file, v.to_string()).unwrap();
+        assert!(load_gltf(&file).is_err(), "{what}: the file on its own loads");
+        parse_json(&text).unwrap_or_else(|e| panic!("{what}: {e}"));
+    }
     std::fs::remove_dir_all(&d).unwrap();
 }
 
@@ -889,6 +904,28 @@ fn validation_faults_name_their_field_and_line() {
     let lines = pretty(&v).lines().count();
     let e = parse_pretty(&v);
     assert!(e.starts_with(&format!("t.gltf:{lines}:1: not a valid glTF: missing field `asset`")), "{e}");
+    // A path through a keyed field (the crate writes `attributes["POSITION"]`)
+    // is located too (it was not until session 50, an audit).
+    let mut v = read_json(&dir().join("Triangle.gltf"));
+    let position = v["meshes"][0]["primitives"][0]["attributes"]["POSITION"].as_u64().unwrap() as usize;
+    v["accessors"][position].as_object_mut().unwrap().remove("min");
+    let e = parse_pretty(&v);
+    assert!(e.starts_with("t.gltf:") && e.split(':').nth(1).unwrap().parse::<u32>().is_ok(), "{e}");
+    assert!(e.contains("attributes[\"POSITION\"]"), "{e}");
+}
+
+/// A file whose `asset.minVersion` is later than 2.0 does not load in a
+/// glTF 2.0 reader (glTF 2.0, "asset"; it loaded without a word until
+/// session 50, an audit); 2.0 itself does.
+#[test]
+fn a_later_min_version_is_refused() {
+    let mut v = read_json(&dir().join("Triangle.gltf"));
+    v["asset"]["version"] = json!("2.1");
+    v["asset"]["minVersion"] = json!("2.1");
+    let e = parse(&v, "Triangle (2.1)").err().unwrap();
+    assert!(e.contains("asset.minVersion") && e.contains("needs glTF 2.1"), "{e}");
+    v["asset"]["minVersion"] = json!("2.0");
+    parse(&v, "Triangle (2.0)").unwrap();
 }
 
 /// Faults gltf-json's own validator does not catch safely: a POSITION

@@ -164,7 +164,7 @@ pub(super) fn include(
     }
     imp.own_camera = false;
     let content = imp.import(transform, b.triangle_count()).map_err(err)?;
-    if content.camera.is_some() {
+    if content.camera_nodes > 0 {
         imp.note("cameras", "not used: the including JSON scene's camera renders");
     }
     let ids = imp.add_materials(b, &content, material, overrides);
@@ -190,6 +190,8 @@ struct Content {
     /// (name, position, intensity) of each point light.
     lights: Vec<(String, Vec3A, Spectrum)>,
     camera: Option<Camera>,
+    /// Nodes with a camera, the one used or not.
+    camera_nodes: usize,
 }
 
 struct ImportedMesh {
@@ -266,7 +268,10 @@ fn load_error(file: &str, text: Option<&str>, field: &str, message: String) -> L
     LoadError { file: file.to_string(), position, field: field.to_string(), message }
 }
 
-/// `a.b[1][2]` as a JSON path; None if it is not one.
+/// `a.b[1][2]` or `a["key"]` (the gltf crate's paths) as a JSON path;
+/// None if it is not one. (A quoted key had none, so validation errors on
+/// `attributes["POSITION"]` came without their line; from an audit,
+/// session 50.)
 fn label_path(label: &str) -> Option<Vec<Seg>> {
     let mut path = Vec::new();
     for part in label.split('.') {
@@ -274,8 +279,12 @@ fn label_path(label: &str) -> Option<Vec<Seg>> {
         let key =
             pieces.next().filter(|k| !k.is_empty() && k.chars().all(|c| c.is_ascii_alphanumeric() || c == '_'))?;
         path.push(Seg::Key(key.to_string()));
-        for index in pieces {
-            path.push(Seg::Index(index.strip_suffix(']')?.parse().ok()?));
+        for piece in pieces {
+            let inner = piece.strip_suffix(']')?;
+            path.push(match inner.strip_prefix('"').and_then(|k| k.strip_suffix('"')) {
+                Some(key) => Seg::Key(key.to_string()),
+                None => Seg::Index(inner.parse().ok()?),
+            });
         }
     }
     Some(path)
@@ -355,6 +364,13 @@ impl<'a> Importer<'a> {
         let version = imp.doc.as_json().asset.version.clone();
         if !version.starts_with("2.") {
             imp.warn("asset.version", format!("version {version} is not glTF 2.x: read as glTF 2.0"));
+        }
+        // A file that needs a later glTF than 2.0 must not load in a 2.0
+        // reader (glTF 2.0, "asset"; from an audit, session 50).
+        let min = imp.doc.as_json().asset.min_version.clone();
+        let later = |m: &String| m.split_once('.').and_then(|(a, b)| Some((a.parse().ok()?, b.parse().ok()?)));
+        if let Some(min) = min.filter(|m| later(m).is_none_or(|v: (u32, u32)| v > (2, 0))) {
+            return Err(imp.fail("asset.minVersion", format!("the file needs glTF {min}; prism reads glTF 2.0")));
         }
         let used: Vec<String> = imp.doc.extensions_used().map(str::to_string).collect();
         for ext in used {
@@ -441,8 +457,7 @@ impl<'a> Importer<'a> {
         let nodes = self.walk(root)?;
         let doc = Rc::clone(&self.doc);
         self.check_triangles(&nodes, used)?;
-        let mut content = Content { meshes: Vec::new(), lights: Vec::new(), camera: None };
-        let mut cameras = 0;
+        let mut content = Content { meshes: Vec::new(), lights: Vec::new(), camera: None, camera_nodes: 0 };
         for (index, world) in nodes {
             let node = doc.nodes().nth(index).expect("validated node index");
             let label = label("nodes", index, node.name());
@@ -457,13 +472,15 @@ impl<'a> Importer<'a> {
                 );
             }
             if let Some(camera) = node.camera() {
-                cameras += 1;
+                content.camera_nodes += 1;
                 match camera.projection() {
+                    // (An included file's cameras are not used, nor checked:
+                    // a degenerate one failed the include; from an audit,
+                    // session 50.)
+                    _ if !self.own_camera => {}
                     gltf::camera::Projection::Perspective(p) if content.camera.is_none() => {
                         content.camera = Some(self.camera(&label, world, p.yfov(), p.aspect_ratio())?);
-                        if self.own_camera {
-                            self.note(&label, "renders through this node's camera");
-                        }
+                        self.note(&label, "renders through this node's camera");
                     }
                     gltf::camera::Projection::Perspective(_) => {}
                     gltf::camera::Projection::Orthographic(_) => {
@@ -475,8 +492,8 @@ impl<'a> Importer<'a> {
                 self.import_light(&light, world, &label, &mut content)?;
             }
         }
-        if cameras > 1 && content.camera.is_some() && self.own_camera {
-            self.note("cameras", format!("{} other camera node(s) not used", cameras - 1));
+        if content.camera_nodes > 1 && content.camera.is_some() {
+            self.note("cameras", format!("{} other camera node(s) not used", content.camera_nodes - 1));
         }
         if content.meshes.is_empty() {
             self.warn("scenes", "the scene has no surfaces to render");
@@ -565,25 +582,22 @@ impl<'a> Importer<'a> {
         if Camera::frame(forward, up).is_none() {
             return Err(self.fail(label, "the camera's transform is degenerate (no view or up direction)"));
         }
-        if self.own_camera {
-            if let Some(why) = camera_distortion(&world) {
-                let what = format!("the camera's transform {why}: rendered from its position, -z and +y alone");
-                self.warn(label, what);
-            }
+        if let Some(why) = camera_distortion(&world) {
+            let what = format!("the camera's transform {why}: rendered from its position, -z and +y alone");
+            self.warn(label, what);
         }
         let fov = yfov.to_degrees();
         if !(fov.is_finite() && fov > 0.0 && fov < 180.0) {
             return Err(self.fail(label, format!("yfov {yfov} rad is not between 0 and pi")));
         }
-        // (Checked only for a camera that renders: an included file's is not used.)
         let valid = aspect.filter(|a| a.is_finite() && *a > 0.0);
-        if let Some(a) = aspect.filter(|_| valid.is_none() && self.own_camera) {
+        if let Some(a) = aspect.filter(|_| valid.is_none()) {
             return Err(self.fail(label, format!("aspectRatio {a} is not a positive number")));
         }
         let aspect = valid.unwrap_or(DEFAULT_ASPECT);
         let exact = (DEFAULT_HEIGHT as f32 * aspect).round();
         let width = (exact as u32).clamp(1, 16384);
-        if self.own_camera && !(1.0..=16384.0).contains(&exact) {
+        if !(1.0..=16384.0).contains(&exact) {
             let why = format!("aspectRatio {aspect} at {DEFAULT_HEIGHT} rows: the width is clamped to {width} pixels");
             self.warn(label, why);
         }
