@@ -119,8 +119,8 @@ impl Mesh {
     }
 
     /// Applies `m` to positions, and its inverse transpose to normals
-    /// (renormalised; a zero normal stays zero, as does one a singular `m`
-    /// takes to zero: NaN took the whole triangle's shading normal, where
+    /// (renormalised; a zero normal stays zero, as does every normal under
+    /// a singular `m`: NaN took the whole triangle's shading normal, where
     /// untransformed the zero one drops out of the interpolation; from an
     /// audit, session 50). A mirroring transform (det < 0) also reverses the
     /// winding, so the geometric normal keeps pointing the way the

@@ -23,10 +23,14 @@ fn write(dir: &Path, name: &str, text: &str) -> String {
     p.display().to_string()
 }
 
-/// `prism render SCENE` on one thread with `args`, which must succeed: its
-/// stderr.
+/// `prism render SCENE` on one thread with `args`.
+fn render_one(scene: &str, args: &[&str]) -> Output {
+    prism(&[&["render", scene, "--threads", "1", "--quiet"], args].concat())
+}
+
+/// `render_one`, which must succeed: its stderr.
 fn render_ok(scene: &str, args: &[&str]) -> String {
-    let o = prism(&[&["render", scene, "--threads", "1", "--quiet"], args].concat());
+    let o = render_one(scene, args);
     assert!(o.status.success(), "{args:?}: {}", stderr(&o));
     stderr(&o)
 }
@@ -461,19 +465,7 @@ fn grown_parts_and_ignored_options_merge() {
     std::fs::copy(d.join("p0.state"), d.join("p0.ckpt")).unwrap();
     render(&["--spp", "3", "--resume", &path("p0.ckpt"), "--checkpoint-every", "100", "--out", &path("p0.exr")]);
     assert!(!d.join("p0.ckpt").exists(), "the finished render kept its checkpoint");
-    let o = prism(&[
-        "render",
-        &scene,
-        "--threads",
-        "1",
-        "--quiet",
-        "--sample-range",
-        "3..5",
-        "--mis",
-        "balance",
-        "--out",
-        &path("p1.exr"),
-    ]);
+    let o = render_one(&scene, &["--sample-range", "3..5", "--mis", "balance", "--out", &path("p1.exr")]);
     assert!(
         o.status.success() && stderr(&o).contains("warning: --mis sets bdpt's heuristic; path reads none"),
         "{}",
@@ -515,20 +507,7 @@ fn a_gltf_naming_a_missing_image_still_renders() {
 fn parts_of_coincident_faces_merge_into_the_whole_render() {
     let d = temp_dir("ties");
     let path = |name: &str| d.join(name).display().to_string();
-    let quad = r#"{"type": "quad", "corners": [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]]}"#;
-    let scene = write(
-        &d,
-        "s.json",
-        &format!(
-            r#"{{
-  "camera": {{"position": [0, 0, -3], "look_at": [0, 0, 0], "fov": 30, "width": 4, "height": 4}},
-  "materials": {{"red": {{"type": "diffuse", "reflectance": {{"rgb": [0.8, 0.1, 0.1]}}}},
-                "green": {{"type": "diffuse", "reflectance": {{"rgb": [0.1, 0.8, 0.1]}}}}}},
-  "objects": [{{"shape": {quad}, "material": "red"}}, {{"shape": {quad}, "material": "green"}}],
-  "lights": [{{"type": "environment", "radiance": 1.0}}]
-}}"#
-        ),
-    );
+    let scene = write(&d, "s.json", &scenes::coincident_quads(4));
     render_ok(&scene, &["--sample-range", "0..1", "--out", &path("p0.exr")]);
     render_ok(&scene, &["--sample-range", "1..2", "--out", &path("p1.exr")]);
     let o = prism(&["merge", &path("parts.exr"), &path("p0.exr"), &path("p1.exr")]);
@@ -571,19 +550,7 @@ fn parts_of_a_scene_whose_mesh_changed_do_not_merge() {
     let e = stderr(&o);
     assert!(!o.status.success() && e.contains("scene_hash"), "{e}");
     assert!(!d.join("all.exr").exists(), "a merge was written");
-    let o = prism(&[
-        "render",
-        &scene,
-        "--threads",
-        "1",
-        "--quiet",
-        "--spp",
-        "2",
-        "--resume",
-        &path("p0.state"),
-        "--out",
-        &path("p0.exr"),
-    ]);
+    let o = render_one(&scene, &["--spp", "2", "--resume", &path("p0.state"), "--out", &path("p0.exr")]);
     let e = stderr(&o);
     assert!(!o.status.success() && e.contains("scene_hash"), "the resume: {e}");
     let _ = std::fs::remove_dir_all(&d);

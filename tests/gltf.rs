@@ -909,8 +909,11 @@ fn validation_faults_name_their_field_and_line() {
     let mut v = read_json(&dir().join("Triangle.gltf"));
     let position = v["meshes"][0]["primitives"][0]["attributes"]["POSITION"].as_u64().unwrap() as usize;
     v["accessors"][position].as_object_mut().unwrap().remove("min");
+    // (The path ends in the accessor's `min`, which the primitive's
+    // POSITION only names: the line is that of `"POSITION"`.)
+    let line = pretty(&v).lines().position(|l| l.contains("\"POSITION\"")).unwrap() + 1;
     let e = parse_pretty(&v);
-    assert!(e.starts_with("t.gltf:") && e.split(':').nth(1).unwrap().parse::<u32>().is_ok(), "{e}");
+    assert!(e.starts_with(&format!("t.gltf:{line}:")), "{e}");
     assert!(e.contains("attributes[\"POSITION\"]"), "{e}");
 }
 
@@ -924,8 +927,18 @@ fn a_later_min_version_is_refused() {
     v["asset"]["minVersion"] = json!("2.1");
     let e = parse(&v, "Triangle (2.1)").err().unwrap();
     assert!(e.contains("asset.minVersion") && e.contains("needs glTF 2.1"), "{e}");
-    v["asset"]["minVersion"] = json!("2.0");
-    parse(&v, "Triangle (2.0)").unwrap();
+    v["asset"]["minVersion"] = json!("3.0");
+    assert!(parse(&v, "Triangle (3.0)").err().unwrap().contains("needs glTF 3.0"));
+    for fine in ["2.0", "1.0"] {
+        v["asset"]["minVersion"] = json!(fine);
+        parse(&v, fine).unwrap_or_else(|e| panic!("{fine}: {e}"));
+    }
+    // Not MAJOR.MINOR (the schema's pattern): warned of and ignored.
+    for odd in ["2", "2.0.0", "+2.0", "garbage"] {
+        v["asset"]["minVersion"] = json!(odd);
+        let g = parse(&v, odd).unwrap_or_else(|e| panic!("{odd}: {e}"));
+        assert!(has(&g.messages, "is not MAJOR.MINOR: ignored"), "{odd}: {:#?}", g.messages);
+    }
 }
 
 /// Faults gltf-json's own validator does not catch safely: a POSITION

@@ -3,11 +3,14 @@
 //! driver uses the lanes whenever an estimator offers them, so this is what
 //! keeps its images those of the one-sample-at-a-time estimator.
 
+#[path = "common/scenes.rs"]
+mod scenes;
+
 use glam::UVec2;
 use prism::integrators::{IntegratorOptions, INTEGRATORS};
 use prism::render::Workspace;
 use prism::sampling::Sampler;
-use prism::scene::load_scene;
+use prism::scene::{load_scene, parse_scene};
 use prism::spectrum::{SampledSpectrum, SampledWavelengths};
 use std::path::Path;
 
@@ -71,22 +74,8 @@ fn path_lanes_equal_samples_taken_alone() {
 /// a block's tied triangles, the packet's the first).
 #[test]
 fn lanes_settle_exact_ties_as_samples_taken_alone() {
-    let d = std::env::temp_dir().join(format!("prism-ties-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    let file = d.join("ties.json");
-    let quad = r#"{"type": "quad", "corners": [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]]}"#;
-    let scene = format!(
-        r#"{{
-  "camera": {{"position": [0, 0, -3], "look_at": [0, 0, 0], "fov": 30, "width": 16, "height": 16}},
-  "materials": {{"red": {{"type": "diffuse", "reflectance": {{"rgb": [0.8, 0.1, 0.1]}}}},
-                "green": {{"type": "diffuse", "reflectance": {{"rgb": [0.1, 0.8, 0.1]}}}}}},
-  "objects": [{{"shape": {quad}, "material": "red"}}, {{"shape": {quad}, "material": "green"}}],
-  "lights": [{{"type": "environment", "radiance": 1.0}}]
-}}"#
-    );
-    std::fs::write(&file, scene).unwrap();
-    let scene = load_scene(&file).unwrap_or_else(|e| panic!("{e}")).build();
-    let _ = std::fs::remove_dir_all(&d);
+    let text = scenes::coincident_quads(16);
+    let scene = parse_scene(&text, "ties.json", Path::new(".")).unwrap_or_else(|e| panic!("{e}")).build();
     let info = INTEGRATORS.iter().find(|i| i.name == "path").expect("path is registered");
     let path = (info.create)(&IntegratorOptions::default());
     let mut ws = Workspace::default();

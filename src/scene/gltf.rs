@@ -229,8 +229,8 @@ struct Importer<'a> {
     /// Texel means of each image (None: it could not be decoded).
     image_means: HashMap<usize, Option<ImageMeans>>,
     messages: Vec<String>,
-    /// Whether the file's camera renders (false when a JSON scene includes
-    /// it), for the notes that say which does.
+    /// Whether the file's camera renders: false when a JSON scene includes
+    /// it, and then its cameras are neither built nor checked.
     own_camera: bool,
 }
 
@@ -367,10 +367,16 @@ impl<'a> Importer<'a> {
         }
         // A file that needs a later glTF than 2.0 must not load in a 2.0
         // reader (glTF 2.0, "asset"; from an audit, session 50).
-        let min = imp.doc.as_json().asset.min_version.clone();
-        let later = |m: &String| m.split_once('.').and_then(|(a, b)| Some((a.parse().ok()?, b.parse().ok()?)));
-        if let Some(min) = min.filter(|m| later(m).is_none_or(|v: (u32, u32)| v > (2, 0))) {
-            return Err(imp.fail("asset.minVersion", format!("the file needs glTF {min}; prism reads glTF 2.0")));
+        if let Some(min) = imp.doc.as_json().asset.min_version.clone() {
+            let digits = |d: &str| (!d.is_empty() && d.bytes().all(|c| c.is_ascii_digit())).then(|| d.parse().ok())?;
+            match min.split_once('.').and_then(|(a, b)| Some((digits(a)?, digits(b)?))) {
+                Some(v) if v > (2u32, 0u32) => {
+                    let needs = format!("the file needs glTF {min}; prism reads glTF 2.0");
+                    return Err(imp.fail("asset.minVersion", needs));
+                }
+                Some(_) => {}
+                None => imp.warn("asset.minVersion", format!("\"{min}\" is not MAJOR.MINOR: ignored")),
+            }
         }
         let used: Vec<String> = imp.doc.extensions_used().map(str::to_string).collect();
         for ext in used {

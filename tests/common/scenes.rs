@@ -72,6 +72,22 @@ pub fn versus(a: &ColourStats, b: &ColourStats) -> Verdict {
     Verdict::versus(a, b, 1)
 }
 
+/// Two coincident quads (the same corners in the same order), one red and
+/// one green, filling a `size` x `size` view under a constant sky: every
+/// camera ray meets both at one distance, an exact tie.
+pub fn coincident_quads(size: u32) -> String {
+    let quad = r#"{"type": "quad", "corners": [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]]}"#;
+    format!(
+        r#"{{
+  "camera": {{"position": [0, 0, -3], "look_at": [0, 0, 0], "fov": 30, "width": {size}, "height": {size}}},
+  "materials": {{"red": {{"type": "diffuse", "reflectance": {{"rgb": [0.8, 0.1, 0.1]}}}},
+                "green": {{"type": "diffuse", "reflectance": {{"rgb": [0.1, 0.8, 0.1]}}}}}},
+  "objects": [{{"shape": {quad}, "material": "red"}}, {{"shape": {quad}, "material": "green"}}],
+  "lights": [{{"type": "environment", "radiance": 1.0}}]
+}}"#
+    )
+}
+
 /// A valid scene of a few lines (an 8 x 8 image of a sphere under a constant
 /// sky) for the command-line and bad-input tests, which edit it.
 pub const TINY_SCENE: &str = r#"{
