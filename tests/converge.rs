@@ -625,6 +625,34 @@ fn an_exact_run_draws_no_slope_guide() {
 /// A run shorter than the clock can measure (CPU seconds tick every 10 ms)
 /// has no efficiency and no rank, and says so; a reference whose own noise
 /// is a large part of the measured error is named in a note.
+/// With a reference of known noise, each result's `efficiency_net` takes
+/// that noise out of relMSE, 1 / ((relMSE - floor) s), and the report shows
+/// its ratio to the best's beside the plain one.
+#[test]
+fn efficiency_net_of_the_reference_noise_is_reported() {
+    let d = temp_dir("net");
+    let source = ReferenceSource::Render { integrator: "path".into(), spp: 2, passes: 2, out: d.join("ref.exr") };
+    let mut cfg = config("white-room.json", "path,light", source, &d.join("o"), 8);
+    cfg.max_spp = Some(4);
+    let r = run(&cfg).unwrap();
+    let floor = r.reference.noise_floor.expect("a rendered reference's noise is estimated");
+    for x in &r.integrators {
+        let want = 1.0 / ((x.rel_mse - floor) * x.seconds);
+        assert!(
+            x.rel_mse > floor && (x.efficiency_net / want - 1.0).abs() < 1e-12,
+            "{}: {}",
+            x.label,
+            x.efficiency_net
+        );
+    }
+    let json: ConvergeResults =
+        serde_json::from_str(&std::fs::read_to_string(d.join("o/results.json")).unwrap()).unwrap();
+    assert_eq!(json.integrators[0].efficiency_net, r.integrators[0].efficiency_net);
+    let report = std::fs::read_to_string(d.join("o/report.md")).unwrap();
+    assert!(report.contains("| vs best, reference noise out |"), "{report}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
 #[test]
 fn unmeasurable_runs_and_noisy_references_are_flagged() {
     let d = temp_dir("flags");

@@ -422,6 +422,16 @@ pub struct IntegratorResult {
     /// exact one (relMSE 0).
     #[serde(deserialize_with = "null_as_nan")]
     pub efficiency: f64,
+    /// `efficiency` with the reference's own noise
+    /// (`ReferenceInfo::noise_floor`) taken out of relMSE: 1 / ((relMSE -
+    /// floor) x seconds), as benches/peers/compare.py counts it. Noise in
+    /// the reference adds the same to every integrator's relMSE and pulls
+    /// the ratios of `efficiency` towards 1 (up to 43 % of an integrator's
+    /// relMSE in docs/results.md's run). NaN (null) where the floor is not
+    /// known, relMSE is not above it, or `efficiency` is NaN; absent before
+    /// session 50.
+    #[serde(default = "nan", deserialize_with = "null_as_nan")]
+    pub efficiency_net: f64,
     /// Samples per wall second.
     pub samples_per_second: f64,
     /// Least-squares slope of ln relMSE against ln spp over the grid
@@ -580,6 +590,7 @@ pub fn run(cfg: &ConvergeConfig) -> Result<ConvergeResults> {
     let info = with_noise_floor(info, &results, max_depth);
     for x in &mut results {
         x.slope = spp_slope(&x.checkpoints, info.noise_floor);
+        x.efficiency_net = efficiency_net(x.efficiency, x.rel_mse, info.noise_floor);
     }
     notes.extend(results.iter().flat_map(|x| result_notes(cfg, x, &info)));
     let out = ConvergeResults {
@@ -844,6 +855,8 @@ fn converge_one(
         mse: last.mse,
         mae: last.mae,
         efficiency: efficiency(last.rel_mse, last.time(cfg.clock), cfg.clock),
+        // Set by `run` once the reference's noise floor is known.
+        efficiency_net: f64::NAN,
         samples_per_second: last.spp as f64 * (w * h) as f64 / last.seconds,
         // Set by `run` once the reference's noise floor is known.
         slope: None,
@@ -866,6 +879,19 @@ fn efficiency(rel_mse: f64, seconds: f64, clock: Clock) -> f64 {
     } else {
         f64::NAN
     }
+}
+
+/// `efficiency` (1 / (relMSE x s)) with the reference's noise `floor`
+/// taken out of relMSE; NaN where it cannot be.
+fn efficiency_net(efficiency: f64, rel_mse: f64, floor: Option<f64>) -> f64 {
+    match floor {
+        Some(f) if rel_mse > f && efficiency.is_finite() => efficiency * rel_mse / (rel_mse - f),
+        _ => f64::NAN,
+    }
+}
+
+fn nan() -> f64 {
+    f64::NAN
 }
 
 /// The slope of ln relMSE against ln spp over the grid checkpoints from 4
@@ -974,6 +1000,17 @@ mod tests {
         eprintln!("slope over every checkpoint {all:.3}, at ten times the floor {clear:.3}");
         assert!(all > -0.8, "{all}");
         assert!((-1.0..=-0.88).contains(&clear), "{clear}");
+    }
+
+    /// 1 / ((relMSE - floor) s), and NaN without a floor, at or under it,
+    /// or without an efficiency.
+    #[test]
+    fn efficiency_net_of_the_reference_noise() {
+        let e = efficiency(4e-3, 2.0, Clock::Wall);
+        assert!((efficiency_net(e, 4e-3, Some(1e-3)) - 1.0 / (3e-3 * 2.0)).abs() < 1e-9);
+        assert!(efficiency_net(e, 4e-3, None).is_nan());
+        assert!(efficiency_net(e, 4e-3, Some(4e-3)).is_nan());
+        assert!(efficiency_net(f64::NAN, 4e-3, Some(1e-3)).is_nan());
     }
 
     #[test]

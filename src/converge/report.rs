@@ -85,11 +85,12 @@ pub fn results_csv(r: &ConvergeResults) -> String {
 pub fn efficiency_table(r: &ConvergeResults) -> String {
     let unit = r.clock.unit();
     let mut s = format!(
-        "| rank | integrator | spp | {unit} | Msamples/s (wall) | relMSE | MSE | MAE | efficiency 1/(relMSE x s) | vs best | slope (spp) |\n\
-         |---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        "| rank | integrator | spp | {unit} | Msamples/s (wall) | relMSE | MSE | MAE | efficiency 1/(relMSE x s) | vs best | vs best, reference noise out | slope (spp) |\n\
+         |---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     let order = r.ranking();
     let best = order.first().map_or(1.0, |&i| r.integrators[i].efficiency);
+    let best_net = order.first().map_or(f64::NAN, |&i| r.integrators[i].efficiency_net);
     for (rank, &i) in order.iter().enumerate() {
         let x = &r.integrators[i];
         let flag = if x.warnings.is_empty() { "" } else { " (!)" };
@@ -98,7 +99,7 @@ pub fn efficiency_table(r: &ConvergeResults) -> String {
         let or_dash = |v: String| if measured { v } else { "-".to_string() };
         let _ = writeln!(
             s,
-            "| {} | {}{flag} | {} | {:.2} | {:.3} | {:.3e} | {:.3e} | {:.3e} | {} | {} | {} |",
+            "| {} | {}{flag} | {} | {:.2} | {:.3} | {:.3e} | {:.3e} | {:.3e} | {} | {} | {} | {} |",
             or_dash((rank + 1).to_string()),
             x.label,
             x.spp,
@@ -109,6 +110,7 @@ pub fn efficiency_table(r: &ConvergeResults) -> String {
             x.mae,
             or_dash(format!("{:.3e}", x.efficiency)),
             or_dash(format!("{:.3}", x.efficiency / best)),
+            Some(x.efficiency_net / best_net).filter(|v| v.is_finite()).map_or("-".to_string(), |v| format!("{v:.3}")),
             x.slope.map_or("-".to_string(), |v| format!("{v:.2}"))
         );
     }
