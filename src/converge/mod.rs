@@ -426,8 +426,8 @@ pub struct IntegratorResult {
     /// (`ReferenceInfo::noise_floor`) taken out of relMSE: 1 / ((relMSE -
     /// floor) x seconds), as benches/peers/compare.py counts it. Noise in
     /// the reference adds the same to every integrator's relMSE and pulls
-    /// the ratios of `efficiency` towards 1 (up to 43 % of an integrator's
-    /// relMSE in docs/results.md's run). NaN (null) where the floor is not
+    /// the ratios of `efficiency` towards 1 (over 40 % of an integrator's
+    /// relMSE in docs/results.md's runs). NaN (null) where the floor is not
     /// known, relMSE is not above it, or `efficiency` is NaN; absent before
     /// session 50.
     #[serde(default = "nan", deserialize_with = "null_as_nan")]
