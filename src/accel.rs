@@ -1005,6 +1005,20 @@ fn decode8(v: &[u8; 8]) -> [Vec4; 2] {
 mod tests {
     use super::*;
 
+    /// `group_bits` against its definition, bit by bit: slot base + i of a
+    /// group's 24 triangle bits is set iff first <= base + i <= last; runs
+    /// before, across, inside and after the group, and the empty run.
+    #[test]
+    fn group_bits_marks_exactly_the_runs_slots() {
+        let runs = (0..80u32).flat_map(|first| (first..first + 47).map(move |last| (first, last)));
+        for (first, last) in runs.chain([(u32::MAX, u32::MAX)]) {
+            for base in (0..80).step_by(4) {
+                let want = (0..24).filter(|i| (first..=last).contains(&(base + i))).fold(0, |m, i| m | 1 << i);
+                assert_eq!(group_bits((first, last), base) & 0x00ff_ffff, want, "run {first}..={last}, base {base}");
+            }
+        }
+    }
+
     fn quad() -> Vec<[Vec3A; 3]> {
         let c = [
             Vec3A::new(0.0, 0.0, 0.0),
