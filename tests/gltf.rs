@@ -965,8 +965,11 @@ fn bad_accessor_indices_and_factors_are_reported() {
 /// Accessors the glTF crate's reader would panic on or cut short: a
 /// byteStride shorter than the element (it panicked), indices running past
 /// their buffer view (read as no index list at all: the triangle soup of
-/// the positions), a zero count, and sparse accessors, whose indices are
-/// not checked. Each is an error naming the accessor.
+/// the positions), a zero count, sparse accessors, whose indices are not
+/// checked, and accessors without a buffer view, which glTF reads as zeros
+/// and the reader as no data (indices without one would be the triangle
+/// soup of the positions, normals without one flat shading). Each is an
+/// error naming the accessor.
 #[test]
 fn accessor_layouts_outside_their_views_are_errors() {
     type Case = (&'static str, fn(&mut Value), &'static str);
@@ -1001,5 +1004,13 @@ fn accessor_layouts_outside_their_views_are_errors() {
         edit(&mut v);
         let e = parse(&v, what).err().unwrap_or_else(|| panic!("{what}: loaded"));
         assert!(e.contains(&format!("primitive 0: {expected}")), "{what}: {e}");
+    }
+    // Without a view (the crate's validation refuses these, with the
+    // accessor's path and line, before `check_layout` could see them).
+    for (file, accessor, what) in [("Triangle", 0, "indices"), ("Triangle", 1, "POSITION"), ("Box", 1, "NORMAL")] {
+        let mut v = read_json(&dir().join(format!("{file}.gltf")));
+        v["accessors"][accessor].as_object_mut().unwrap().remove("bufferView");
+        let e = parse(&v, what).err().unwrap_or_else(|| panic!("{what} without a bufferView: loaded"));
+        assert!(e.contains(&format!("accessors[{accessor}].bufferView: invalid glTF: missing data")), "{what}: {e}");
     }
 }
