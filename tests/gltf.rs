@@ -1014,3 +1014,32 @@ fn accessor_layouts_outside_their_views_are_errors() {
         assert!(e.contains(&format!("accessors[{accessor}].bufferView: invalid glTF: missing data")), "{what}: {e}");
     }
 }
+
+/// glTF 2.0 (5.25): a node's rotation is a unit quaternion. The crate's
+/// matrix of one that is not shears and shrinks the mesh (for (0, 0, 0.5,
+/// 0.5) it maps (1, 0, 0) to (0.5, 0.5, 0)); it is normalised, with a
+/// warning, and a zero one is an error. A unit rotation is read as before.
+#[test]
+fn a_rotation_of_other_than_unit_length_is_normalised_with_a_warning() {
+    let rotated = |r: [f32; 4]| {
+        let mut v = read_json(&dir().join("Triangle.gltf"));
+        v["nodes"][0]["rotation"] = json!(r);
+        parse(&v, "Triangle (rotated)")
+    };
+    let vertices = |g: GltfScene| g.builder.build().triangles().flat_map(|t| t.0).collect::<Vec<Vec3A>>();
+    let h = std::f32::consts::FRAC_1_SQRT_2;
+    let unit = rotated([0.0, 0.0, h, h]).unwrap();
+    assert!(!has(&unit.messages, "unit quaternion"), "{:?}", unit.messages);
+    let short = rotated([0.0, 0.0, 0.5, 0.5]).unwrap();
+    let warning = "nodes[0]: rotation [0.0, 0.0, 0.5, 0.5] is not a unit quaternion (length 0.70710677): normalised";
+    assert!(has(&short.messages, warning), "{:?}", short.messages);
+    let (unit, short) = (vertices(unit), vertices(short));
+    // Triangle.gltf's (1, 0, 0) turned a quarter about z is (0, 1, 0).
+    assert!(unit.iter().any(|p| p.distance(Vec3A::Y) < 1e-6), "{unit:?}");
+    assert_eq!(unit.len(), short.len());
+    for (a, b) in short.iter().zip(&unit) {
+        assert!(a.distance(*b) < 1e-6, "{a} against {b}");
+    }
+    let e = rotated([0.0; 4]).err().expect("a zero rotation loaded");
+    assert!(e.contains("nodes[0]: rotation [0.0, 0.0, 0.0, 0.0] is not a rotation (length 0)"), "{e}");
+}

@@ -39,11 +39,16 @@ use crate::camera::Camera;
 use crate::materials::{roughness_to_alpha, Bsdf, Conductor, Dielectric, Diffuse};
 use crate::shapes::Mesh;
 use crate::spectrum::{self, Spectrum};
-use glam::{Affine3A, DVec3, Mat4, Vec3A};
+use glam::{Affine3A, DVec3, Mat4, Quat, Vec3A};
 use gltf::mesh::Mode;
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
+
+/// How far a node's rotation may be from unit length before it is
+/// normalised with a warning: an f32 quaternion written to 7 digits is
+/// within ~1e-7 of it.
+const UNIT_QUATERNION_TOLERANCE: f32 = 1e-5;
 
 /// Extensions whose data the loader reads; others are ignored with a
 /// warning, or refused when the file requires them.
@@ -536,8 +541,7 @@ impl<'a> Importer<'a> {
             if std::mem::replace(&mut reached[node.index()], true) {
                 return Err(self.fail(&label, "the node is reached twice: glTF nodes form disjoint trees"));
             }
-            self.check_node_transform(&node, &label);
-            let local = Affine3A::from_mat4(Mat4::from_cols_array_2d(&node.transform().matrix()));
+            let local = self.node_transform(&node, &label)?;
             let world = parent * local;
             if !world.is_finite() {
                 return Err(self.fail(&label, "the node transform is not finite"));
@@ -548,14 +552,35 @@ impl<'a> Importer<'a> {
         Ok(nodes)
     }
 
-    /// Warns of what glTF 2.0 (5.25, "node") forbids in a node's transform
-    /// and the loader would otherwise drop without a word: TRS beside a
-    /// matrix (the matrix is used) and a matrix whose last row is not
-    /// (0, 0, 0, 1) (an affine transform is used).
-    fn check_node_transform(&mut self, node: &gltf::Node, label: &str) {
+    /// A node's local transform, with warnings of what glTF 2.0 (5.25,
+    /// "node") forbids in it and the loader would otherwise read without a
+    /// word: TRS beside a matrix (the matrix is used), a matrix whose last
+    /// row is not (0, 0, 0, 1) (an affine transform is used), and a rotation
+    /// that is not a unit quaternion (normalised: the crate's matrix of it
+    /// assumes unit length, and would shear and shrink the mesh; a zero one
+    /// is an error).
+    fn node_transform(&mut self, node: &gltf::Node, label: &str) -> Result<Affine3A, LoadError> {
         let json = &self.doc.as_json().nodes[node.index()];
-        let Some(m) = json.matrix else { return };
-        if json.translation.is_some() || json.rotation.is_some() || json.scale.is_some() {
+        let (matrix, rotation) = (json.matrix, json.rotation.as_ref().map(|r| Quat::from_array(r.0)));
+        let trs = json.translation.or(json.scale).is_some() || rotation.is_some();
+        let given = Affine3A::from_mat4(Mat4::from_cols_array_2d(&node.transform().matrix()));
+        let Some(m) = matrix else {
+            let Some(q) = rotation else { return Ok(given) };
+            let length = q.length();
+            if (length - 1.0).abs() <= UNIT_QUATERNION_TOLERANCE {
+                return Ok(given);
+            }
+            if !(length.is_finite() && length > 0.0) {
+                return Err(
+                    self.fail(label, format!("rotation {:?} is not a rotation (length {length})", q.to_array()))
+                );
+            }
+            let why = format!("rotation {:?} is not a unit quaternion (length {length}): normalised", q.to_array());
+            self.warn(label, why);
+            let (t, _, s) = node.transform().decomposed();
+            return Ok(Affine3A::from_scale_rotation_translation(s.into(), q / length, t.into()));
+        };
+        if trs {
             self.warn(label, "the node has a matrix and translation, rotation or scale: the matrix is used");
         }
         let row = [m[3], m[7], m[11], m[15]];
@@ -565,6 +590,7 @@ impl<'a> Importer<'a> {
                 format!("the matrix's last row {row:?} is not [0, 0, 0, 1]: dropped (an affine transform is used)"),
             );
         }
+        Ok(given)
     }
 
     /// The triangles the nodes' meshes declare (by their accessors' counts,
