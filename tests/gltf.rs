@@ -1016,9 +1016,11 @@ fn accessor_layouts_outside_their_views_are_errors() {
 }
 
 /// glTF 2.0 (5.25): a node's rotation is a unit quaternion. The crate's
-/// matrix of one that is not shears and shrinks the mesh (for (0, 0, 0.5,
-/// 0.5) it maps (1, 0, 0) to (0.5, 0.5, 0)); it is normalised, with a
-/// warning, and a zero one is an error. A unit rotation is read as before.
+/// matrix of one that is not turns the mesh by another angle and scales it
+/// across the axis (for (0, 0, 0.5, 0.5) it maps (1, 0, 0) to (0.5, 0.5,
+/// 0)); it is normalised, with a warning, and a zero or infinite one is an
+/// error. A rotation within rounding of unit length (the Khronos samples
+/// write four digits) is read as before, without a word.
 #[test]
 fn a_rotation_of_other_than_unit_length_is_normalised_with_a_warning() {
     let rotated = |r: [f32; 4]| {
@@ -1031,7 +1033,7 @@ fn a_rotation_of_other_than_unit_length_is_normalised_with_a_warning() {
     let unit = rotated([0.0, 0.0, h, h]).unwrap();
     assert!(!has(&unit.messages, "unit quaternion"), "{:?}", unit.messages);
     let short = rotated([0.0, 0.0, 0.5, 0.5]).unwrap();
-    let warning = "nodes[0]: rotation [0.0, 0.0, 0.5, 0.5] is not a unit quaternion (length 0.70710677): normalised";
+    let warning = "nodes[0]: rotation [0.0, 0.0, 0.5, 0.5] is not a unit quaternion (length 0.707107): normalised";
     assert!(has(&short.messages, warning), "{:?}", short.messages);
     let (unit, short) = (vertices(unit), vertices(short));
     // Triangle.gltf's (1, 0, 0) turned a quarter about z is (0, 1, 0).
@@ -1040,6 +1042,12 @@ fn a_rotation_of_other_than_unit_length_is_normalised_with_a_warning() {
     for (a, b) in short.iter().zip(&unit) {
         assert!(a.distance(*b) < 1e-6, "{a} against {b}");
     }
+    let rounded = rotated([0.0, 0.0, 0.7071, 0.7071]).unwrap();
+    assert!(!has(&rounded.messages, "unit quaternion"), "{:?}", rounded.messages);
     let e = rotated([0.0; 4]).err().expect("a zero rotation loaded");
-    assert!(e.contains("nodes[0]: rotation [0.0, 0.0, 0.0, 0.0] is not a rotation (length 0)"), "{e}");
+    assert!(e.contains("nodes[0]: rotation [0.0, 0.0, 0.0, 0.0] is zero or not finite: not a rotation"), "{e}");
+    let mut v = read_json(&dir().join("Triangle.gltf"));
+    v["nodes"][0]["rotation"] = json!([0.0, 0.0, 1e39, 1.0]);
+    let e = parse(&v, "Triangle (rotated)").err().expect("an infinite rotation loaded");
+    assert!(e.contains("nodes[0]: rotation [0.0, 0.0, inf, 1.0] is zero or not finite"), "{e}");
 }
