@@ -595,8 +595,9 @@ pub fn intersect_triangle(ray: &Ray, tri: &[Vec3A; 3], t_max: f32) -> Option<(f3
 /// two roundings of ts / |det|, so ts / |det| <= t (1 + u)^2 (u = 2^-24),
 /// and fl(reach |det|) >= t (1 + 8u)(1 - u)^2 |det|, which is above
 /// t (1 + u)^2 |det| and so above ts, for every hit whose t is at most the
-/// best's (normal floats; a reach of infinity passes all). Tested against the best t itself, a
-/// tie passed or not by the luck of rounding, and so by the order.
+/// best's (normal floats; a reach of infinity passes all). Tested against
+/// the best t itself, a tie passed or not by the luck of rounding, and so
+/// by the order.
 ///
 /// Two cases are left to the order, both rare. Nodes are entered within
 /// the same reach, so a tie in another leaf is met unless the f32
