@@ -122,35 +122,38 @@ fn quantization_step(extent: Vec3A) -> Vec3A {
 /// of child c in slot s is the dot product of octant s's diagonal direction
 /// with the vector from the node's centre to c's centre, and the cheapest
 /// (child, free slot) pair is taken until all are placed (greedy; the paper
-/// suggests an auction, obvhs found greedy almost as good). A ray of octant
-/// s then visits the children in slot order xor s roughly front to back.
-/// Returns each child's slot.
+/// suggests an auction, obvhs found greedy almost as good), the first
+/// (child, slot) in order on ties. A ray of octant s then visits the
+/// children in slot order xor s roughly front to back. Returns each
+/// child's slot.
 fn octant_slots(node: &Aabb, children: &[Range]) -> Vec<usize> {
     let centre = node.center();
-    // cost[c][s]; slot s's direction: bit 2 of s negates x, bit 1 y, bit 0
-    // z, matching the traversal's oct_inv4.
+    // Pair (c, s) as a key that orders by cost, then c, then s: the cost
+    // in total_cmp's order as an integer (+0.0 folds -0.0 into +0.0, so
+    // the two tie, as under `<`) above the pair's index c * 8 + s. Slot
+    // s's direction: bit 2 of s negates x, bit 1 y, bit 0 z, matching the
+    // traversal's oct_inv4. Taken rows and columns are i64::MAX.
     let sign = |s: usize, bit: usize| if s & bit != 0 { -1.0 } else { 1.0 };
-    let mut cost = [[0.0f32; BRANCHING]; BRANCHING];
-    for (row, child) in cost.iter_mut().zip(children) {
+    let mut keys = [i64::MAX; BRANCHING * BRANCHING];
+    for (c, child) in children.iter().enumerate() {
         let v = child.bounds.center() - centre;
-        for (s, c) in row.iter_mut().enumerate() {
-            *c = Vec3A::new(sign(s, 0b100), sign(s, 0b010), sign(s, 0b001)).dot(v);
+        for s in 0..BRANCHING {
+            let cost = Vec3A::new(sign(s, 0b100), sign(s, 0b010), sign(s, 0b001)).dot(v) + 0.0;
+            let bits = cost.to_bits() as i32;
+            let ordered = bits ^ (((bits >> 31) as u32) >> 1) as i32;
+            keys[c * BRANCHING + s] = (ordered as i64) << 32 | (c * BRANCHING + s) as i64;
         }
     }
-    let mut slot_of = vec![usize::MAX; children.len()];
-    let mut filled = [false; BRANCHING];
+    let mut slot_of = vec![0; children.len()];
     for _ in 0..children.len() {
-        let mut best: Option<(usize, usize, f32)> = None;
-        for c in (0..children.len()).filter(|&c| slot_of[c] == usize::MAX) {
-            for s in (0..BRANCHING).filter(|&s| !filled[s]) {
-                if best.is_none_or(|(_, _, b)| cost[c][s] < b) {
-                    best = Some((c, s, cost[c][s]));
-                }
-            }
-        }
-        let (c, s, _) = best.expect("a free slot for every child");
-        filled[s] = true;
+        // A branch-free minimum over all 64 keys (vectorised).
+        let pair = (keys.iter().fold(i64::MAX, |a, &k| a.min(k)) & 63) as usize;
+        let (c, s) = (pair / BRANCHING, pair % BRANCHING);
         slot_of[c] = s;
+        for k in 0..BRANCHING {
+            keys[c * BRANCHING + k] = i64::MAX;
+            keys[k * BRANCHING + s] = i64::MAX;
+        }
     }
     slot_of
 }
@@ -165,6 +168,62 @@ mod tests {
             let e = quantization_step(Vec3A::splat(x));
             assert!(e.x * 255.0 >= x && e.x.to_bits() & 0x807f_ffff == 0, "{x}: {e}");
             assert!(x == 0.0 || e.x * 127.5 < x.max(1e-20), "{x}: {e} not the smallest");
+        }
+    }
+
+    /// The greedy assignment as a plain search, each step the cheapest free
+    /// (child, slot) pair under `<`, the first in (child, slot) order on
+    /// ties: what `octant_slots` computes with integer keys.
+    fn greedy_by_search(node: &Aabb, children: &[Range]) -> Vec<usize> {
+        let sign = |s: usize, bit: usize| if s & bit != 0 { -1.0 } else { 1.0 };
+        let cost = |c: usize, s: usize| {
+            Vec3A::new(sign(s, 0b100), sign(s, 0b010), sign(s, 0b001)).dot(children[c].bounds.center() - node.center())
+        };
+        let mut slot_of = vec![usize::MAX; children.len()];
+        let mut filled = [false; BRANCHING];
+        for _ in 0..children.len() {
+            let mut best: Option<(usize, usize, f32)> = None;
+            for c in (0..children.len()).filter(|&c| slot_of[c] == usize::MAX) {
+                for s in (0..BRANCHING).filter(|&s| !filled[s]) {
+                    if best.is_none_or(|(_, _, b)| cost(c, s) < b) {
+                        best = Some((c, s, cost(c, s)));
+                    }
+                }
+            }
+            let (c, s, _) = best.unwrap();
+            (filled[s], slot_of[c]) = (true, s);
+        }
+        slot_of
+    }
+
+    /// Random children, and children on a lattice of few values, whose
+    /// costs tie (zeros of both signs among them), 1 to 8 of them.
+    #[test]
+    fn octant_slots_is_the_greedy_assignment() {
+        let mut next = crate::wide_bvh::tests::uniform(5);
+        for trial in 0..2000 {
+            let mut point = || {
+                let v = Vec3A::new(next(), next(), next());
+                if trial % 2 == 0 {
+                    v * 8.0 - 4.0
+                } else {
+                    (v * 3.0).floor() - 1.0
+                }
+            };
+            let children: Vec<Range> = (0..1 + trial % BRANCHING)
+                .map(|i| {
+                    let (a, b) = (point(), point());
+                    let bounds = Aabb::new(a.min(b), a.max(b));
+                    Range { start: i, end: i + 1, bounds, centroids: bounds }
+                })
+                .collect();
+            let node = children.iter().fold(Aabb::empty(), |a, c| a.union(&c.bounds));
+            let slots = octant_slots(&node, &children);
+            assert_eq!(slots, greedy_by_search(&node, &children), "{children:?}");
+            let mut distinct = slots.clone();
+            distinct.sort_unstable();
+            distinct.dedup();
+            assert_eq!(distinct.len(), children.len());
         }
     }
 }

@@ -34,8 +34,8 @@ impl Split {
     #[inline(always)]
     fn goes_left(&self, p: &PrimRef) -> bool {
         match self.plane {
-            Plane::Bin { grid, bin } => grid.bin(p, self.axis) < bin,
-            Plane::Key(key) => sweep_key(p, self.axis) < key,
+            Plane::Bin { grid, bin } => grid.below(p, self.axis, bin),
+            Plane::Key(key) => sweep_key(&p.bounds(), self.axis) < key,
         }
     }
 }
@@ -72,26 +72,32 @@ impl Grid {
     #[inline(always)]
     fn bins(&self, p: &PrimRef) -> [usize; AXES] {
         let b = p.bounds();
-        let c = self.cells(&b);
-        [c.x as usize, c.y as usize, c.z as usize, self.octave(&b)]
+        // A whole float in [0, 2^23) plus 2^23 holds the integer in its low
+        // mantissa bits: the cells' floors (truncations, as none is
+        // negative) to integers without a saturating conversion per lane.
+        let c = (self.cells(&b).floor() + Vec3A::splat(8_388_608.0)).to_array();
+        let [x, y, z] = c.map(|c| c.to_bits() as usize & (BINS - 1));
+        [x, y, z, self.octave(&b)]
     }
 
-    /// The bin of `p` on one axis, as `bins` computes it (the same lane
-    /// arithmetic), without the other three: a partition asks for one.
+    /// Whether the bin of `p` on one axis, as `bins` computes it, is below
+    /// `bin`, without the other three axes: a partition asks this. A cell
+    /// in [0, 31] is below a whole number exactly when its floor is.
     #[inline(always)]
-    fn bin(&self, p: &PrimRef, axis: usize) -> usize {
+    fn below(&self, p: &PrimRef, axis: usize, bin: usize) -> bool {
         let b = p.bounds();
         if axis < 3 {
-            self.cells(&b)[axis] as usize
+            self.cells(&b)[axis] < bin as f32
         } else {
-            self.octave(&b)
+            self.octave(&b) < bin
         }
     }
 
-    /// The (doubled) centroid's cell on each spatial axis, as floats.
+    /// The (doubled) centroid's cell on each spatial axis, as floats in
+    /// [0, 31] (a NaN, which no valid box has, in 31).
     #[inline(always)]
     fn cells(&self, b: &Aabb) -> Vec3A {
-        ((b.min + b.max - self.origin) * self.scale).min(Vec3A::splat((BINS - 1) as f32))
+        ((b.min + b.max - self.origin) * self.scale).min(Vec3A::splat((BINS - 1) as f32)).max(Vec3A::ZERO)
     }
 
     /// The size bin: the octave from the float's exponent, 127 - exponent
@@ -202,8 +208,7 @@ fn binned_split(refs: &[PrimRef], range: &Range) -> Option<Split> {
 /// What a sweep sorts by: the (doubled) centroid on axes 0-2, the box's
 /// half area on axis 3 (the size axis).
 #[inline(always)]
-fn sweep_key(p: &PrimRef, axis: usize) -> f32 {
-    let b = p.bounds();
+fn sweep_key(b: &Aabb, axis: usize) -> f32 {
     if axis < 3 {
         (b.min + b.max)[axis]
     } else {
@@ -215,33 +220,66 @@ fn sweep_key(p: &PrimRef, axis: usize) -> f32 {
 /// by key, every plane between two distinct keys.
 fn swept_split(refs: &[PrimRef]) -> Option<Split> {
     let n = refs.len();
+    let mut boxes = [Aabb::empty(); SWEEP_PRIMS];
+    let mut keys = [[0.0f32; AXES]; SWEEP_PRIMS];
+    for ((b, k), p) in boxes.iter_mut().zip(&mut keys).zip(refs) {
+        *b = p.bounds();
+        *k = std::array::from_fn(|axis| sweep_key(b, axis));
+    }
+    let orders = sorted_orders(&keys, n);
     let mut best: Option<Split> = None;
-    let mut order = [(0.0f32, 0usize); SWEEP_PRIMS];
     let mut right_cost = [0.0f32; SWEEP_PRIMS];
-    for axis in 0..AXES {
-        for (i, p) in refs.iter().enumerate() {
-            order[i] = (sweep_key(p, axis), i);
-        }
-        order[..n].sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    for (axis, order) in orders.iter().enumerate() {
+        let sorted = |i: usize| order[i] as usize;
         let mut bounds = Aabb::empty();
         for i in (1..n).rev() {
-            bounds = bounds.union(&refs[order[i].1].bounds());
+            bounds = bounds.union(&boxes[sorted(i)]);
             right_cost[i] = bounds.half_area() * (n - i) as f32;
         }
         let mut bounds = Aabb::empty();
         for i in 1..n {
-            bounds = bounds.union(&refs[order[i - 1].1].bounds());
-            if order[i - 1].0 == order[i].0 {
+            bounds = bounds.union(&boxes[sorted(i - 1)]);
+            let key = keys[sorted(i)][axis];
+            if keys[sorted(i - 1)][axis] == key {
                 continue;
             }
             let cost = bounds.half_area() * i as f32 + right_cost[i];
             // (Not a cost past f32's range: a NaN, once kept, would stay.)
             if cost.is_finite() && best.is_none_or(|s| cost < s.cost) {
-                best = Some(Split { axis, plane: Plane::Key(order[i].0), cost });
+                best = Some(Split { axis, plane: Plane::Key(key), cost });
             }
         }
     }
     best
+}
+
+/// On each axis, the indices of `keys[..n]` sorted by key in
+/// `f32::total_cmp`'s order, ties by index, found by counting each one's
+/// rank: n^2 comparisons without a branch, the four axes side by side in
+/// one vector, where a sort of 16 mispredicts.
+fn sorted_orders(keys: &[[f32; AXES]; SWEEP_PRIMS], n: usize) -> [[u8; SWEEP_PRIMS]; AXES] {
+    // total_cmp's order as an integer's (its own implementation).
+    let mut ord = [[0i32; AXES]; SWEEP_PRIMS];
+    for (o, k) in ord[..n].iter_mut().zip(keys) {
+        *o = k.map(|k| {
+            let bits = k.to_bits() as i32;
+            bits ^ (((bits >> 31) as u32) >> 1) as i32
+        });
+    }
+    let mut orders = [[0; SWEEP_PRIMS]; AXES];
+    for i in 0..n {
+        // A tie counts for j before i.
+        let mut rank = [0u32; AXES];
+        for (j, o) in ord[..n].iter().enumerate() {
+            for a in 0..AXES {
+                rank[a] += ((o[a] < ord[i][a]) | ((o[a] == ord[i][a]) & (j < i))) as u32;
+            }
+        }
+        for (order, r) in orders.iter_mut().zip(rank) {
+            order[r as usize] = i as u8;
+        }
+    }
+    orders
 }
 
 /// Partitions `range` in place by `split` (Hoare's scheme: deterministic,
@@ -298,7 +336,7 @@ mod tests {
         assert!(matches!(split.plane, Plane::Key(k) if split.axis == 0 && k > 0.0), "{split:?}");
     }
 
-    /// A partition classifies by `Grid::bin`, the binning by `Grid::bins`:
+    /// A partition classifies by `Grid::below`, the binning by `Grid::bins`:
     /// they must agree, or a split's two sides would not be the bins its
     /// cost was computed from. Boxes of every size class, flat and
     /// degenerate ones included, over a range's grid and over a sub-range's
@@ -321,7 +359,14 @@ mod tests {
             for p in &refs {
                 let all = grid.bins(p);
                 for (axis, &bin) in all.iter().enumerate() {
-                    assert_eq!(grid.bin(p, axis), bin, "axis {axis}, {:?}", p.bounds());
+                    assert!(bin < BINS);
+                    for plane in 0..=BINS {
+                        assert_eq!(grid.below(p, axis, plane), bin < plane, "axis {axis}, {:?}", p.bounds());
+                    }
+                    // The cells' floors, as a saturating conversion gives them.
+                    if axis < 3 {
+                        assert_eq!(bin, grid.cells(&p.bounds())[axis] as usize);
+                    }
                     seen[axis][bin] = true;
                 }
             }
@@ -329,6 +374,30 @@ mod tests {
             // not that of a constant.
             for (axis, bins) in seen.iter().enumerate() {
                 assert!(bins.iter().filter(|&&b| b).count() >= 16, "axis {axis} reached {bins:?}");
+            }
+        }
+    }
+
+    /// The ranks give the order of a sort by `total_cmp`, ties by index, on
+    /// every axis: keys with many ties, both zeros, infinities and NaNs,
+    /// 1 to 16 of them.
+    #[test]
+    fn sorted_orders_sort_by_total_order_then_index() {
+        let specials = [0.0, -0.0, 1.0, -1.0, f32::INFINITY, f32::NEG_INFINITY, f32::NAN, -f32::NAN, 1e-40];
+        let mut next = crate::wide_bvh::tests::uniform(9);
+        for trial in 0..3000 {
+            let n = 1 + trial % SWEEP_PRIMS;
+            let mut keys = [[0.0f32; AXES]; SWEEP_PRIMS];
+            for k in keys[..n].iter_mut().flatten() {
+                let u = next();
+                *k = if trial % 3 == 0 { (u * 4.0).floor() } else { specials[(u * specials.len() as f32) as usize] };
+            }
+            let orders = sorted_orders(&keys, n);
+            for (axis, order) in orders.iter().enumerate() {
+                let mut by_sort: Vec<usize> = (0..n).collect();
+                by_sort.sort_by(|&a, &b| keys[a][axis].total_cmp(&keys[b][axis]).then(a.cmp(&b)));
+                let ranked: Vec<usize> = order[..n].iter().map(|&i| i as usize).collect();
+                assert_eq!(ranked, by_sort, "axis {axis}: {:?}", &keys[..n]);
             }
         }
     }
