@@ -91,16 +91,18 @@ impl Collapse {
             self.choice[n] = [Choice::Leaf; BRANCHING];
             return;
         };
-        // D(n, j) for j = 2..=8 at index j - 1.
+        // D(n, j) for j = 2..=8 at index j - 1, the least k on ties. A
+        // cost (not negative; infinite or NaN past f32's range) and k as
+        // one integer key, the cost's bits above k's, so the least key is
+        // the least cost (under `<`: a NaN never wins) then k, found with
+        // integer minima, not branches on data.
+        let (left, right) = (self.cost[l], self.cost[r]);
         let mut distribute = [f32::INFINITY; BRANCHING];
         for j in 2..=BRANCHING {
-            for k in 1..j {
-                let c = self.cost[l][k - 1] + self.cost[r][j - k - 1];
-                if c < distribute[j - 1] {
-                    distribute[j - 1] = c;
-                    self.split[n][j - 1] = k as u8;
-                }
-            }
+            let key = |c: f32, k: usize| u64::from(c.to_bits()) << 8 | k as u64;
+            let best = (1..j).map(|k| key(left[k - 1] + right[j - k - 1], k)).fold(key(f32::INFINITY, 1), u64::min);
+            distribute[j - 1] = f32::from_bits((best >> 8) as u32);
+            self.split[n][j - 1] = best as u8;
         }
         let inner = area * NODE_COST + distribute[BRANCHING - 1];
         // (A leaf of too many primitives costs infinity, as may an inner
