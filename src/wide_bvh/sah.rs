@@ -3,7 +3,7 @@
 //! ranges; and the in-place partition that applies one.
 
 use super::{PrimRef, Range};
-use glam::Vec3A;
+use glam::{BVec4A, Vec3A, Vec4};
 use obvhs::aabb::Aabb;
 use rayon::prelude::*;
 
@@ -115,15 +115,17 @@ impl Grid {
     }
 }
 
+/// Per bin, the four axes' boxes and counts side by side, as the
+/// evaluation reads them.
 #[derive(Clone, Copy)]
 struct Bins {
-    bounds: [[Aabb; BINS]; AXES],
-    counts: [[u32; BINS]; AXES],
+    bounds: [[Aabb; AXES]; BINS],
+    counts: [[u32; AXES]; BINS],
 }
 
 impl Bins {
     fn empty() -> Self {
-        Self { bounds: [[Aabb::empty(); BINS]; AXES], counts: [[0; BINS]; AXES] }
+        Self { bounds: [[Aabb::empty(); AXES]; BINS], counts: [[0; AXES]; BINS] }
     }
 
     fn fill(refs: &[PrimRef], grid: &Grid) -> Self {
@@ -131,8 +133,8 @@ impl Bins {
         for p in refs {
             let b = p.bounds();
             for (axis, bin) in grid.bins(p).into_iter().enumerate() {
-                bins.bounds[axis][bin] = bins.bounds[axis][bin].union(&b);
-                bins.counts[axis][bin] += 1;
+                bins.bounds[bin][axis] = bins.bounds[bin][axis].union(&b);
+                bins.counts[bin][axis] += 1;
             }
         }
         bins
@@ -141,13 +143,48 @@ impl Bins {
     /// Exact in any order (min, max and integer sums), so parallel binning
     /// gives the serial result.
     fn merge(mut self, other: Self) -> Self {
-        for axis in 0..AXES {
-            for bin in 0..BINS {
-                self.bounds[axis][bin] = self.bounds[axis][bin].union(&other.bounds[axis][bin]);
-                self.counts[axis][bin] += other.counts[axis][bin];
+        for bin in 0..BINS {
+            for axis in 0..AXES {
+                self.bounds[bin][axis] = self.bounds[bin][axis].union(&other.bounds[bin][axis]);
+                self.counts[bin][axis] += other.counts[bin][axis];
             }
         }
         self
+    }
+}
+
+/// One side of a plane on each of the four axes: the union of its bins and
+/// their count.
+#[derive(Clone, Copy)]
+struct Side {
+    bounds: [Aabb; AXES],
+    count: [u32; AXES],
+}
+
+impl Side {
+    fn empty() -> Self {
+        Self { bounds: [Aabb::empty(); AXES], count: [0; AXES] }
+    }
+
+    fn add(&mut self, bins: &Bins, bin: usize) {
+        for axis in 0..AXES {
+            self.bounds[axis] = self.bounds[axis].union(&bins.bounds[bin][axis]);
+            self.count[axis] += bins.counts[bin][axis];
+        }
+    }
+
+    /// Half area x count on each axis, the four side by side in one vector;
+    /// the area as `Aabb::half_area` computes it, (d.x + d.y) d.z + d.x d.y,
+    /// so the costs are those of a side at a time, to the bit.
+    fn cost(&self) -> Vec4 {
+        let d = self.bounds.map(|b| b.diagonal());
+        let lane = |c: usize| Vec4::from_array(d.map(|d| d[c]));
+        let (x, y, z) = (lane(0), lane(1), lane(2));
+        ((x + y) * z + x * y) * Vec4::from_array(self.count.map(|c| c as f32))
+    }
+
+    fn nonempty(&self) -> BVec4A {
+        BVec4A::from(self.count.map(|c| c != 0))
     }
 }
 
@@ -174,32 +211,34 @@ fn binned_split(refs: &[PrimRef], range: &Range) -> Option<Split> {
     } else {
         Bins::fill(refs, &grid)
     };
+    // The four axes side by side; an axis that separates nothing (flat, or
+    // all of a size) takes no part. right_cost[b]: area x count of bins b..
+    // (the right side of a plane before bin b), infinite if empty.
+    let scale = grid.scale;
+    let usable = BVec4A::new(scale.x > 0.0, scale.y > 0.0, scale.z > 0.0, grid.sized());
+    let mut right_cost = [Vec4::ZERO; BINS];
+    let mut right = Side::empty();
+    for b in (1..BINS).rev() {
+        right.add(&bins, b);
+        right_cost[b] = Vec4::select(right.nonempty(), right.cost(), Vec4::INFINITY);
+    }
+    // Each axis's cheapest plane, the first on ties. (Not a cost past f32's
+    // range: a NaN, once kept, would stay.)
+    let (mut best_cost, mut best_bin) = (Vec4::INFINITY, Vec4::ZERO);
+    let mut left = Side::empty();
+    for (b, right) in right_cost.iter().enumerate().skip(1) {
+        left.add(&bins, b - 1);
+        let cost = left.cost() + *right;
+        let better = usable & left.nonempty() & cost.is_finite_mask() & cost.cmplt(best_cost);
+        best_cost = Vec4::select(better, cost, best_cost);
+        best_bin = Vec4::select(better, Vec4::splat(b as f32), best_bin);
+    }
+    // The cheapest of the axes', the first on ties (bin 0: no plane).
     let mut best: Option<Split> = None;
     for axis in 0..AXES {
-        if if axis < 3 { grid.scale[axis] == 0.0 } else { !grid.sized() } {
-            continue;
-        }
-        // right_cost[b]: area x count of bins b.. (the right side of a plane
-        // before bin b).
-        let mut right_cost = [0.0f32; BINS];
-        let (mut bounds, mut count) = (Aabb::empty(), 0u32);
-        for b in (1..BINS).rev() {
-            bounds = bounds.union(&bins.bounds[axis][b]);
-            count += bins.counts[axis][b];
-            right_cost[b] = if count == 0 { f32::INFINITY } else { bounds.half_area() * count as f32 };
-        }
-        let (mut bounds, mut count) = (Aabb::empty(), 0u32);
-        for (b, right) in right_cost.iter().enumerate().skip(1) {
-            bounds = bounds.union(&bins.bounds[axis][b - 1]);
-            count += bins.counts[axis][b - 1];
-            if count == 0 {
-                continue;
-            }
-            let cost = bounds.half_area() * count as f32 + right;
-            // (Not a cost past f32's range: a NaN, once kept, would stay.)
-            if cost.is_finite() && best.is_none_or(|s| cost < s.cost) {
-                best = Some(Split { axis, plane: Plane::Bin { grid, bin: b }, cost });
-            }
+        let (cost, bin) = (best_cost[axis], best_bin[axis] as usize);
+        if bin > 0 && best.is_none_or(|s| cost < s.cost) {
+            best = Some(Split { axis, plane: Plane::Bin { grid, bin }, cost });
         }
     }
     best
