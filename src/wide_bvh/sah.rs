@@ -72,11 +72,8 @@ impl Grid {
     #[inline(always)]
     fn bins(&self, p: &PrimRef) -> [usize; AXES] {
         let b = p.bounds();
-        // A whole float in [0, 2^23) plus 2^23 holds the integer in its low
-        // mantissa bits: the cells' floors (truncations, as none is
-        // negative) to integers without a saturating conversion per lane.
-        let c = (self.cells(&b).floor() + Vec3A::splat(8_388_608.0)).to_array();
-        let [x, y, z] = c.map(|c| c.to_bits() as usize & (BINS - 1));
+        // (`& (BINS - 1)`, a no-op on [0, 31], spares the bounds checks.)
+        let [x, y, z] = truncate(self.cells(&b)).map(|c| c as usize & (BINS - 1));
         [x, y, z, self.octave(&b)]
     }
 
@@ -117,6 +114,30 @@ impl Grid {
 
 /// Per bin, the four axes' boxes and counts side by side, as the
 /// evaluation reads them.
+/// The lanes of `v`, each in [0, 31], truncated to integers, all three by
+/// one instruction: Rust's `as` saturates lane by lane with branches for
+/// NaN and overflow, which no cell needs, and floor is emulated in SSE2.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn truncate(v: Vec3A) -> [i32; 3] {
+    use std::arch::x86_64::{_mm_cvtsi128_si32, _mm_cvttps_epi32, _mm_shuffle_epi32};
+    // SAFETY: these intrinsics only need SSE2, which every x86-64 CPU has
+    // (it is part of the x86-64 baseline target); none touches memory.
+    unsafe {
+        let i = _mm_cvttps_epi32(v.into());
+        [
+            _mm_cvtsi128_si32(i),
+            _mm_cvtsi128_si32(_mm_shuffle_epi32::<1>(i)),
+            _mm_cvtsi128_si32(_mm_shuffle_epi32::<2>(i)),
+        ]
+    }
+}
+
+#[cfg(not(target_arch = "x86_64"))]
+fn truncate(v: Vec3A) -> [i32; 3] {
+    v.to_array().map(|c| c as i32)
+}
+
 #[derive(Clone, Copy)]
 struct Bins {
     bounds: [[Aabb; AXES]; BINS],
