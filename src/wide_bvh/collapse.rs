@@ -52,7 +52,9 @@ impl Collapse {
     /// The binary SAH tree over `refs` (all of `root`), partitioned in place,
     /// and its table; node 0 is the root, children follow their parents.
     pub(super) fn new(refs: &mut [PrimRef], root: Range) -> Self {
-        let mut nodes = vec![BinaryNode { range: root, children: None, depth: 0 }];
+        // (A binary tree over n primitives has 2 n - 1 nodes.)
+        let mut nodes = Vec::with_capacity(2 * root.len() - 1);
+        nodes.push(BinaryNode { range: root, children: None, depth: 0 });
         let mut i = 0;
         while i < nodes.len() {
             let BinaryNode { range, depth, .. } = nodes[i];
@@ -162,9 +164,12 @@ impl Collapse {
             members.push(n);
         }
         let moved = |r: Range| Range { start: r.start + shift, end: r.end + shift, ..r };
-        let children: Vec<Range> = members.iter().map(|&m| moved(self.nodes[m].range)).collect();
+        let children: [Range; BRANCHING] =
+            std::array::from_fn(|c| moved(self.nodes[members[c.min(members.len() - 1)]].range));
         let bounds = self.nodes[n].range.bounds;
-        for (c, child, child_slot) in emit(refs, base, bounds, &children, slot, nodes) {
+        for (c, child, child_slot) in
+            emit(refs, base, bounds, &children[..members.len()], slot, nodes).into_iter().flatten()
+        {
             let m = members[c];
             self.emit_subtree(refs, base, m, child.start - self.nodes[m].range.start, child_slot, nodes);
         }

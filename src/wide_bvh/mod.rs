@@ -162,8 +162,8 @@ fn build_node(refs: &mut [PrimRef], base: usize, node: Range, slot: usize, depth
     // Disjoint slices for the inner children, in memory order.
     let mut rest = &mut *refs;
     let mut taken = 0;
-    let mut jobs = Vec::with_capacity(inner.len());
-    for (_, child, child_slot) in inner {
+    let mut jobs = Vec::with_capacity(BRANCHING);
+    for (_, child, child_slot) in inner.into_iter().flatten() {
         let (_, tail) = std::mem::take(&mut rest).split_at_mut(child.start - taken);
         let (mine, tail) = tail.split_at_mut(child.len());
         rest = tail;

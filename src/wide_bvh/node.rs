@@ -10,7 +10,7 @@ use obvhs::{aabb::Aabb, cwbvh::node::CwBvhNode};
 /// in memory order, covering the node's) into `nodes[slot]`: slots by ray
 /// octant, quantized boxes, metadata; reserves nodes for its inner
 /// children. Returns the inner children (index, moved range, reserved slot)
-/// in memory order.
+/// in memory order, then None.
 pub(super) fn emit(
     refs: &mut [PrimRef],
     base: usize,
@@ -18,7 +18,7 @@ pub(super) fn emit(
     children: &[Range],
     slot: usize,
     nodes: &mut Vec<CwBvhNode>,
-) -> Vec<(usize, Range, usize)> {
+) -> [Option<(usize, Range, usize)>; BRANCHING] {
     let (moved, offsets) = leaves_first(refs, children);
     let e = quantization_step(aabb.max - aabb.min);
     let mut wide = CwBvhNode {
@@ -29,7 +29,7 @@ pub(super) fn emit(
         ..CwBvhNode::default()
     };
     let mut by_slot: [Option<usize>; BRANCHING] = [None; BRANCHING];
-    for (c, s) in octant_slots(&aabb, children).into_iter().enumerate() {
+    for (c, s) in octant_slots(&aabb, children).into_iter().enumerate().take(children.len()) {
         by_slot[s] = Some(c);
     }
     // Leaf children: the count in unary in the top 3 bits, the offset of
@@ -52,7 +52,8 @@ pub(super) fn emit(
     }
     nodes.resize(nodes.len() + inner, CwBvhNode::default());
     nodes[slot] = wide;
-    (0..children.len()).filter(|&c| !is_leaf(&children[c])).map(|c| (c, moved[c], inner_slots[c])).collect()
+    let mut inner = (0..children.len()).filter(|&c| !is_leaf(&children[c])).map(|c| (c, moved[c], inner_slots[c]));
+    std::array::from_fn(|_| inner.next())
 }
 
 fn is_leaf(c: &Range) -> bool {
@@ -64,15 +65,21 @@ fn is_leaf(c: &Range) -> bool {
 /// front of the node's range and the inner children's ranges up behind
 /// them, each as a block. Returns the children's ranges after the move and
 /// each leaf child's offset.
-fn leaves_first(refs: &mut [PrimRef], children: &[Range]) -> (Vec<Range>, [u8; BRANCHING]) {
+fn leaves_first(refs: &mut [PrimRef], children: &[Range]) -> ([Range; BRANCHING], [u8; BRANCHING]) {
     let first = children[0].start;
-    let leaf_prims: Vec<PrimRef> =
-        children.iter().filter(|c| is_leaf(c)).flat_map(|c| refs[c.start..c.end].iter().copied()).collect();
-    let mut moved = children.to_vec();
+    let mut leaf_prims = [refs[first]; BRANCHING * MAX_LEAF_PRIMS];
+    let mut leaf_count = 0;
+    for c in children.iter().filter(|c| is_leaf(c)) {
+        leaf_prims[leaf_count..leaf_count + c.len()].copy_from_slice(&refs[c.start..c.end]);
+        leaf_count += c.len();
+    }
+    let leaf_prims = &leaf_prims[..leaf_count];
+    let mut moved = [children[0]; BRANCHING];
+    moved[..children.len()].copy_from_slice(children);
     let mut next = first + leaf_prims.len();
     let mut offsets = [0u8; BRANCHING];
     let mut leaf_offset = 0;
-    for (c, child) in moved.iter_mut().enumerate() {
+    for (c, child) in moved[..children.len()].iter_mut().enumerate() {
         if is_leaf(child) {
             offsets[c] = leaf_offset as u8;
             leaf_offset += child.len();
@@ -86,7 +93,7 @@ fn leaves_first(refs: &mut [PrimRef], children: &[Range]) -> (Vec<Range>, [u8; B
     for (old, new) in children.iter().zip(&moved).rev().filter(|(c, _)| !is_leaf(c)) {
         refs.copy_within(old.start..old.end, new.start);
     }
-    refs[first..first + leaf_prims.len()].copy_from_slice(&leaf_prims);
+    refs[first..first + leaf_prims.len()].copy_from_slice(leaf_prims);
     (moved, offsets)
 }
 
@@ -125,8 +132,8 @@ fn quantization_step(extent: Vec3A) -> Vec3A {
 /// suggests an auction, obvhs found greedy almost as good), the first
 /// (child, slot) in order on ties. A ray of octant s then visits the
 /// children in slot order xor s roughly front to back. Returns each
-/// child's slot.
-fn octant_slots(node: &Aabb, children: &[Range]) -> Vec<usize> {
+/// child's slot (the first `children.len()` entries).
+fn octant_slots(node: &Aabb, children: &[Range]) -> [usize; BRANCHING] {
     let centre = node.center();
     // Pair (c, s) as a key that orders by cost, then c, then s: the cost
     // in total_cmp's order as an integer (+0.0 folds -0.0 into +0.0, so
@@ -144,7 +151,7 @@ fn octant_slots(node: &Aabb, children: &[Range]) -> Vec<usize> {
             keys[c * BRANCHING + s] = (ordered as i64) << 32 | (c * BRANCHING + s) as i64;
         }
     }
-    let mut slot_of = vec![0; children.len()];
+    let mut slot_of = [0; BRANCHING];
     for _ in 0..children.len() {
         // A branch-free minimum over all 64 keys (vectorised).
         let pair = (keys.iter().fold(i64::MAX, |a, &k| a.min(k)) & 63) as usize;
@@ -218,7 +225,7 @@ mod tests {
                 })
                 .collect();
             let node = children.iter().fold(Aabb::empty(), |a, c| a.union(&c.bounds));
-            let slots = octant_slots(&node, &children);
+            let slots = octant_slots(&node, &children)[..children.len()].to_vec();
             assert_eq!(slots, greedy_by_search(&node, &children), "{children:?}");
             let mut distinct = slots.clone();
             distinct.sort_unstable();
