@@ -124,20 +124,31 @@ fn quantization_step(extent: Vec3A) -> Vec3A {
     Vec3A::select((e * 255.0).cmplt(extent), e * 2.0, e)
 }
 
+/// A pair's cost as `octant_slots` ranks it: -0.0 as +0.0, and a NaN (a
+/// centre past f32's range: inf - inf) as +inf, the worst, tied with
+/// other infinite costs by (child, slot).
+fn octant_cost(dot: f32) -> f32 {
+    if dot.is_nan() {
+        f32::INFINITY
+    } else {
+        dot + 0.0
+    }
+}
+
 /// Assigns the children to the 8 slots by ray octant (Ylitie et al. 2017,
 /// sec. 3.2, "ordering the children"), as obvhs's `order_children`: the cost
 /// of child c in slot s is the dot product of octant s's diagonal direction
 /// with the vector from the node's centre to c's centre, and the cheapest
 /// (child, free slot) pair is taken until all are placed (greedy; the paper
 /// suggests an auction, obvhs found greedy almost as good), the first
-/// (child, slot) in order on ties. A ray of octant s then visits the
-/// children in slot order xor s roughly front to back. Returns each
-/// child's slot (the first `children.len()` entries).
+/// (child, slot) in order on ties, a NaN cost as infinite. A ray of
+/// octant s then visits the children in slot order xor s roughly front to
+/// back. Returns each child's slot (the first `children.len()` entries).
 fn octant_slots(node: &Aabb, children: &[Range]) -> [usize; BRANCHING] {
     let centre = node.center();
     // Pair (c, s) as a key that orders by cost, then c, then s: the cost
-    // in total_cmp's order as an integer (+0.0 folds -0.0 into +0.0, so
-    // the two tie, as under `<`) above the pair's index c * 8 + s. Slot
+    // (`octant_cost`) in total_cmp's order as an integer above the pair's
+    // index c * 8 + s. Slot
     // s's direction: bit 2 of s negates x, bit 1 y, bit 0 z, matching the
     // traversal's oct_inv4. Taken rows and columns are i64::MAX.
     let sign = |s: usize, bit: usize| if s & bit != 0 { -1.0 } else { 1.0 };
@@ -145,7 +156,7 @@ fn octant_slots(node: &Aabb, children: &[Range]) -> [usize; BRANCHING] {
     for (c, child) in children.iter().enumerate() {
         let v = child.bounds.center() - centre;
         for s in 0..BRANCHING {
-            let cost = Vec3A::new(sign(s, 0b100), sign(s, 0b010), sign(s, 0b001)).dot(v) + 0.0;
+            let cost = octant_cost(Vec3A::new(sign(s, 0b100), sign(s, 0b010), sign(s, 0b001)).dot(v));
             let bits = cost.to_bits() as i32;
             let ordered = bits ^ (((bits >> 31) as u32) >> 1) as i32;
             keys[c * BRANCHING + s] = (ordered as i64) << 32 | (c * BRANCHING + s) as i64;
@@ -184,7 +195,13 @@ mod tests {
     fn greedy_by_search(node: &Aabb, children: &[Range]) -> Vec<usize> {
         let sign = |s: usize, bit: usize| if s & bit != 0 { -1.0 } else { 1.0 };
         let cost = |c: usize, s: usize| {
-            Vec3A::new(sign(s, 0b100), sign(s, 0b010), sign(s, 0b001)).dot(children[c].bounds.center() - node.center())
+            let v = children[c].bounds.center() - node.center();
+            let dot = Vec3A::new(sign(s, 0b100), sign(s, 0b010), sign(s, 0b001)).dot(v);
+            if dot.is_nan() {
+                f32::INFINITY
+            } else {
+                dot
+            }
         };
         let mut slot_of = vec![usize::MAX; children.len()];
         let mut filled = [false; BRANCHING];
@@ -203,18 +220,19 @@ mod tests {
         slot_of
     }
 
-    /// Random children, and children on a lattice of few values, whose
-    /// costs tie (zeros of both signs among them), 1 to 8 of them.
+    /// Random children, children on a lattice of few values, whose costs
+    /// tie (zeros of both signs among them), and children out to 2.5e38,
+    /// whose centres overflow (infinite and NaN costs), 1 to 8 of them.
     #[test]
     fn octant_slots_is_the_greedy_assignment() {
         let mut next = crate::wide_bvh::tests::uniform(5);
-        for trial in 0..2000 {
+        for trial in 0..3000 {
             let mut point = || {
                 let v = Vec3A::new(next(), next(), next());
-                if trial % 2 == 0 {
-                    v * 8.0 - 4.0
-                } else {
-                    (v * 3.0).floor() - 1.0
+                match trial % 3 {
+                    0 => v * 8.0 - 4.0,
+                    1 => (v * 3.0).floor() - 1.0,
+                    _ => ((v * 3.0).floor() - 1.0) * 2.5e38,
                 }
             };
             let children: Vec<Range> = (0..1 + trial % BRANCHING)

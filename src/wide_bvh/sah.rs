@@ -91,7 +91,7 @@ impl Grid {
     }
 
     /// The (doubled) centroid's cell on each spatial axis, as floats in
-    /// [0, 31] (a NaN, which no valid box has, in 31).
+    /// [0, 31] (a NaN, from centroids past f32's range, in 31).
     #[inline(always)]
     fn cells(&self, b: &Aabb) -> Vec3A {
         ((b.min + b.max - self.origin) * self.scale).min(Vec3A::splat((BINS - 1) as f32)).max(Vec3A::ZERO)
@@ -112,8 +112,6 @@ impl Grid {
     }
 }
 
-/// Per bin, the four axes' boxes and counts side by side, as the
-/// evaluation reads them.
 /// The lanes of `v`, each in [0, 31], truncated to integers, all three by
 /// one instruction: Rust's `as` saturates lane by lane with branches for
 /// NaN and overflow, which no cell needs, and floor is emulated in SSE2.
@@ -138,6 +136,8 @@ fn truncate(v: Vec3A) -> [i32; 3] {
     v.to_array().map(|c| c as i32)
 }
 
+/// Per bin, the four axes' boxes and counts side by side, as the
+/// evaluation reads them.
 #[derive(Clone, Copy)]
 struct Bins {
     bounds: [[Aabb; AXES]; BINS],
