@@ -647,7 +647,12 @@ fn efficiency_net_of_the_reference_noise_is_reported() {
     }
     let json: ConvergeResults =
         serde_json::from_str(&std::fs::read_to_string(d.join("o/results.json")).unwrap()).unwrap();
-    assert_eq!(json.integrators[0].efficiency_net, r.integrators[0].efficiency_net);
+    // (serde_json's default float parser may land one ulp off the shortest
+    // decimal ryu wrote, as at seed offset 85: 2041.7504710327082 read back
+    // as 2041.750471032708; its exact parser would change the scene
+    // loader's range errors.)
+    let (read, kept) = (json.integrators[0].efficiency_net, r.integrators[0].efficiency_net);
+    assert!((read / kept - 1.0).abs() <= 2.0 * f64::EPSILON, "{read} vs {kept}");
     let report = std::fs::read_to_string(d.join("o/report.md")).unwrap();
     assert!(report.contains("| vs best, reference noise out |"), "{report}");
     std::fs::remove_dir_all(&d).unwrap();
