@@ -58,6 +58,14 @@ const PARALLEL_SUBTREES: usize = 4096;
 /// logarithmic depth and a bounded recursion.
 const SAH_DEPTH: u32 = 32;
 
+/// `x` as an integer that orders as `f32::total_cmp` orders the floats
+/// (total_cmp's own transform): the sweeps' sort and the octant slots'
+/// greedy assignment compare these, without a branch.
+fn total_order_key(x: f32) -> i32 {
+    let bits = x.to_bits() as i32;
+    bits ^ (((bits >> 31) as u32) >> 1) as i32
+}
+
 /// A primitive's box and its index (in the w lane of `min`, as bits), as
 /// Embree's `PrimRef`: 32 bytes, moved as one by the partition.
 #[derive(Clone, Copy, Debug)]

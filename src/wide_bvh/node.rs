@@ -2,7 +2,7 @@
 //! child boxes and metadata (Ylitie et al. 2017, sec. 3.1, in obvhs's
 //! `CwBvhNode` layout).
 
-use super::{PrimRef, Range, BRANCHING, MAX_LEAF_PRIMS};
+use super::{total_order_key, PrimRef, Range, BRANCHING, MAX_LEAF_PRIMS};
 use glam::Vec3A;
 use obvhs::{aabb::Aabb, cwbvh::node::CwBvhNode};
 
@@ -157,9 +157,7 @@ fn octant_slots(node: &Aabb, children: &[Range]) -> [usize; BRANCHING] {
         let v = child.bounds.center() - centre;
         for s in 0..BRANCHING {
             let cost = octant_cost(Vec3A::new(sign(s, 0b100), sign(s, 0b010), sign(s, 0b001)).dot(v));
-            let bits = cost.to_bits() as i32;
-            let ordered = bits ^ (((bits >> 31) as u32) >> 1) as i32;
-            keys[c * BRANCHING + s] = (ordered as i64) << 32 | (c * BRANCHING + s) as i64;
+            keys[c * BRANCHING + s] = (total_order_key(cost) as i64) << 32 | (c * BRANCHING + s) as i64;
         }
     }
     let mut slot_of = [0; BRANCHING];

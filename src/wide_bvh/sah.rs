@@ -2,7 +2,7 @@
 //! three centroid axes and on size classes, or swept exactly for small
 //! ranges; and the in-place partition that applies one.
 
-use super::{PrimRef, Range};
+use super::{total_order_key, PrimRef, Range};
 use glam::{BVec4A, Vec3A, Vec4};
 use obvhs::aabb::Aabb;
 use rayon::prelude::*;
@@ -318,13 +318,9 @@ fn swept_split(refs: &[PrimRef]) -> Option<Split> {
 /// rank: n^2 comparisons without a branch, the four axes side by side in
 /// one vector, where a sort of 16 mispredicts.
 fn sorted_orders(keys: &[[f32; AXES]; SWEEP_PRIMS], n: usize) -> [[u8; SWEEP_PRIMS]; AXES] {
-    // total_cmp's order as an integer's (its own implementation).
     let mut ord = [[0i32; AXES]; SWEEP_PRIMS];
     for (o, k) in ord[..n].iter_mut().zip(keys) {
-        *o = k.map(|k| {
-            let bits = k.to_bits() as i32;
-            bits ^ (((bits >> 31) as u32) >> 1) as i32
-        });
+        *o = k.map(total_order_key);
     }
     let mut orders = [[0; SWEEP_PRIMS]; AXES];
     for i in 0..n {
