@@ -242,7 +242,10 @@ impl Light {
                 let to = p_l - p_ref;
                 let dist2 = to.length_squared();
                 let cos_l = n_l.dot(to).abs() / dist2.sqrt();
-                if cos_l == 0.0 {
+                // At p_l == p_ref, where `sample_li` has no sample, cos_l
+                // is 0 / 0: a NaN density made a NaN MIS weight (a review,
+                // session 53).
+                if cos_l.is_nan() || cos_l == 0.0 {
                     return 0.0;
                 }
                 dist2 / (cos_l * a.area)
@@ -329,5 +332,35 @@ impl Light {
             Light::Point(_) => (1.0, UNIFORM_SPHERE_PDF),
             Light::Environment(e) => (1.0 / (PI * e.radius * e.radius), UNIFORM_SPHERE_PDF),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `pdf_li` is `sample_li`'s density: dist^2 / (|cos| area) at a point
+    /// seen from the front (the control), and 0, not NaN, where the two
+    /// points coincide (cos = 0 / 0; the old `cos == 0` test let the NaN
+    /// through) or the light is seen edge-on.
+    #[test]
+    fn area_pdf_li_is_finite_where_sample_li_has_no_sample() {
+        let v = [Vec3A::ZERO, Vec3A::X, Vec3A::Y];
+        let area = AreaLight {
+            v,
+            n: Vec3A::Z,
+            area: 0.5,
+            le: Spectrum::Constant(1.0),
+            two_sided: false,
+            prim: 0,
+            slot: 0,
+            margin: 0.0,
+        };
+        let light = Light::Area(area);
+        let p_l = Vec3A::new(0.25, 0.25, 0.0);
+        let from = p_l + Vec3A::new(0.0, 0.0, 2.0);
+        assert_eq!(light.pdf_li(from, p_l, Vec3A::Z), 4.0 / (1.0 * 0.5));
+        assert_eq!(light.pdf_li(p_l, p_l, Vec3A::Z), 0.0);
+        assert_eq!(light.pdf_li(p_l + Vec3A::X, p_l, Vec3A::Z), 0.0);
     }
 }

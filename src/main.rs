@@ -744,6 +744,7 @@ fn merge_command(out: &Path, parts: &[PathBuf]) -> Result<()> {
     )?;
     let merged =
         RenderState::merge(inputs.iter().map(|path| Ok((path.display().to_string(), RenderState::load(path)?))))?;
+    check_merge_keeps_samples(&state, out, &merged)?;
     let (id, film) = (&merged.identity, &merged.film);
     // The state first, as a render writes it: it is what `merge` reads, and
     // if the process dies in between, a new state beside an old image is
@@ -760,6 +761,30 @@ fn merge_command(out: &Path, parts: &[PathBuf]) -> Result<()> {
     outputs.commit()?;
     eprintln!("merged {} parts: {} spp (samples {:?})", parts.len(), film.spp, merged.sample_ranges);
     warn_dropped("samples", &film.dropped);
+    Ok(())
+}
+
+/// A merge may replace an earlier merge of the same render whose samples it
+/// holds again (merging again as parts arrive), never sums it does not
+/// hold: `prism merge parts/part-*.exr`, the output name forgotten, would
+/// have written the other parts' sum over the first part's (a review,
+/// session 53).
+fn check_merge_keeps_samples(state: &Path, out: &Path, merged: &RenderState) -> Result<()> {
+    if !state.exists() {
+        return Ok(());
+    }
+    let name = state.display().to_string();
+    let way_out = format!("the first path names the output ({}): choose another, or remove {name}", out.display());
+    let old = RenderState::load(state).with_context(|| format!("the merge would replace {name}; {way_out}"))?;
+    merged
+        .identity
+        .ensure_same("the merge", &old.identity, &name)
+        .with_context(|| format!("the merge would replace {name}, another render's samples; {way_out}"))?;
+    let held =
+        |r: &Range<u32>| r.is_empty() || merged.sample_ranges.iter().any(|m| m.start <= r.start && r.end <= m.end);
+    if let Some(r) = old.sample_ranges.iter().find(|r| !held(r)) {
+        bail!("the merge would replace {name}, which holds samples {r:?} that the parts do not all hold; {way_out}");
+    }
     Ok(())
 }
 

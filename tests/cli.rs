@@ -294,6 +294,22 @@ fn outputs_never_replace_the_scene_or_each_other() {
     fails_with(prism(&["merge", &path("m.exr"), &path("p1.ckpt")]), "a part must name its .exr image or its .state");
     let by_state = prism(&["merge", &path("m.exr"), &path("p1.state")]);
     assert!(by_state.status.success(), "a part named by its state: {}", stderr(&by_state));
+    // The output name forgotten (`prism merge parts/*.exr`): the first part
+    // would be the output, its sums replaced by the others'. Refused, as is
+    // a merge over a state of samples it does not hold, or of another
+    // render; merging again with more parts is not.
+    let p2 = prism(&["render", &scene, "--sample-range", "1..2", "--quiet", "--out", &path("p2.exr")]);
+    assert!(p2.status.success(), "{}", stderr(&p2));
+    let p2_state = std::fs::read(d.join("p2.state")).unwrap();
+    let replaced = "the merge would replace";
+    fails_with(prism(&["merge", &path("p2.exr"), &path("p1.exr")]), replaced);
+    assert_eq!(std::fs::read(d.join("p2.state")).unwrap(), p2_state, "the first part's state changed");
+    let again = prism(&["merge", &path("m.exr"), &path("p1.exr"), &path("p2.exr")]);
+    assert!(again.status.success(), "the control, a merge again with more parts: {}", stderr(&again));
+    fails_with(prism(&["merge", &path("m.exr"), &path("p2.exr")]), replaced);
+    let q = prism(&["render", &scene, "--seed", "5", "--sample-range", "0..1", "--quiet", "--out", &path("q.exr")]);
+    assert!(q.status.success(), "{}", stderr(&q));
+    fails_with(prism(&["merge", &path("q.exr"), &path("p1.exr"), &path("p2.exr")]), replaced);
 
     // A sidecar replaces an earlier sidecar, never another JSON file: here a
     // second scene, which no input names (found by a review, session 39:
