@@ -395,6 +395,28 @@ const CASES: &[Case] = &[
         words: &["objects[0].shape.file:", "faceless.obj: no triangles"],
     },
     Case {
+        id: "obj-lines-only",
+        edits: &[(
+            "{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1}",
+            "{\"type\": \"obj\", \"file\": \"lines.obj\"}",
+        )],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:4:",
+        words: &["objects[0].shape.file:", "lines.obj: no triangles"],
+    },
+    Case {
+        id: "obj-nan-normal",
+        edits: &[(
+            "{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1}",
+            "{\"type\": \"obj\", \"file\": \"nan-normal.obj\"}",
+        )],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:4:",
+        words: &["objects[0].shape.file:", "nan-normal.obj: non-finite vertex normal"],
+    },
+    Case {
         id: "triangle-too-large",
         edits: &[("\"material\": \"white\"}", "\"material\": \"white\", \"transform\": {\"scale\": 1e12}}")],
         args: &[],
@@ -744,6 +766,12 @@ fn run(case: &Case) -> Result<(), String> {
     std::fs::write(dir.join("mixed.obj"), MIXED_OBJ).unwrap();
     // An OBJ with vertices but no face.
     std::fs::write(dir.join("faceless.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\n").unwrap();
+    // Faces of one and two vertices and a line: no area (tobj padded them
+    // into zero-area triangles).
+    std::fs::write(dir.join("lines.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1\nf 1 2\nl 2 3\n").unwrap();
+    // A triangle whose first vertex normal is NaN.
+    std::fs::write(dir.join("nan-normal.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn nan 0 1\nvn 0 0 1\nf 1//1 2//2 3//2\n")
+        .unwrap();
     // An earlier part's state (its contents are never read by these cases).
     std::fs::write(dir.join("part.state"), PREVIOUS).unwrap();
     let out = if Path::new(case.out).is_absolute() { PathBuf::from(case.out) } else { dir.join(case.out) };

@@ -287,6 +287,28 @@ fn unsupported_features_are_named_errors() {
     let e = parse(&v, "Triangle (bad indices)").err().unwrap();
     assert!(e.contains("nodes[0] (meshes[0]), primitive 0: indices must be SCALAR"), "{e}");
 
+    // A NORMAL accessor with a NaN (the transform made it zero, and the
+    // triangle rendered flat without a word until session 53). The buffer is
+    // Triangle.gltf's 44 bytes and three normals, (NaN, 0, 1), (0, 0, 1),
+    // (0, 0, 1); the control, its NaN replaced by 0, loads.
+    let with_normals = |buffer: &str| {
+        let mut v = read_json(&dir().join("Triangle.gltf"));
+        v["buffers"][0] = json!({"uri": format!("data:application/octet-stream;base64,{buffer}"), "byteLength": 80});
+        let view = json!({"buffer": 0, "byteOffset": 44, "byteLength": 36});
+        v["bufferViews"].as_array_mut().unwrap().push(view);
+        let accessor = json!({"bufferView": 2, "componentType": 5126, "count": 3, "type": "VEC3"});
+        v["accessors"].as_array_mut().unwrap().push(accessor);
+        v["meshes"][0]["primitives"][0]["attributes"]["NORMAL"] = json!(2);
+        parse(&v, "Triangle (normals)")
+    };
+    let nan =
+        "AAABAAIAAAAAAAAAAAAAAAAAAAAAAIA/AAAAAAAAAAAAAAAAAACAPwAAAAAAAMB/AAAAAAAAgD8AAAAAAAAAAAAAgD8AAAAAAAAAAAAAgD8=";
+    let e = with_normals(nan).err().expect("a NaN normal loaded");
+    assert!(e.contains("primitive 0: NORMAL values are not finite"), "{e}");
+    let zero =
+        "AAABAAIAAAAAAAAAAAAAAAAAAAAAAIA/AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAAAAAAAgD8AAAAAAAAAAAAAgD8=";
+    with_normals(zero).expect("the control, finite normals");
+
     // A triangle too large for f32 normals (it would vanish from the BVH).
     let mut v = read_json(&dir().join("Triangle.gltf"));
     v["nodes"][0]["scale"] = json!([1e10, 1e10, 1e10]);

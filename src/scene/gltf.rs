@@ -710,6 +710,10 @@ impl<'a> Importer<'a> {
             }
             self.check_primitive(&prim, &pwhat)?;
             let mut m = self.read_primitive(&prim, &pwhat)?;
+            // Before the transform, which makes a NaN normal zero (flat).
+            if m.normals.iter().any(|n| !n.is_finite()) {
+                return Err(self.fail(&pwhat, "NORMAL values are not finite"));
+            }
             m.transform(world);
             if m.positions.iter().any(|p| !p.is_finite()) {
                 return Err(self.fail(&pwhat, "vertex positions are not finite"));

@@ -990,7 +990,17 @@ impl<'a> Ctx<'a> {
             let why = if full.exists() { "not a regular file" } else { "no such file" };
             return Err(self.err(path, format!("cannot read mesh {}: {why}", full.display())));
         }
-        let opts = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
+        // Faces of one or two vertices (and `p` and `l` elements) have no
+        // area: without the two `ignore_` options tobj padded them into
+        // zero-area triangles, and a file of nothing else passed as a mesh
+        // (a review, session 53).
+        let opts = tobj::LoadOptions {
+            triangulate: true,
+            single_index: true,
+            ignore_points: true,
+            ignore_lines: true,
+            ..Default::default()
+        };
         let (models, _) = tobj::load_obj(&full, &opts)
             .map_err(|e| self.err(path, format!("cannot read mesh {}: {e}", full.display())))?;
         let mut mesh = Mesh { positions: Vec::new(), normals: Vec::new(), indices: Vec::new() };
@@ -1020,6 +1030,9 @@ impl<'a> Ctx<'a> {
         }
         if mesh.positions.iter().any(|p| !p.is_finite()) {
             return Err(self.err(path, format!("{}: non-finite vertex position", full.display())));
+        }
+        if mesh.normals.iter().any(|n| !n.is_finite()) {
+            return Err(self.err(path, format!("{}: non-finite vertex normal", full.display())));
         }
         if mesh.indices.is_empty() {
             let why = format!("{}: no triangles (no `f` line of three or more vertices)", full.display());
