@@ -994,13 +994,7 @@ impl<'a> Ctx<'a> {
         // area: without the two `ignore_` options tobj padded them into
         // zero-area triangles, and a file of nothing else passed as a mesh
         // (a review, session 53).
-        let opts = tobj::LoadOptions {
-            triangulate: true,
-            single_index: true,
-            ignore_points: true,
-            ignore_lines: true,
-            ..Default::default()
-        };
+        let opts = tobj::LoadOptions { triangulate: true, single_index: true, ignore_points: true, ignore_lines: true };
         let (models, _) = tobj::load_obj(&full, &opts)
             .map_err(|e| self.err(path, format!("cannot read mesh {}: {e}", full.display())))?;
         let mut mesh = Mesh { positions: Vec::new(), normals: Vec::new(), indices: Vec::new() };
