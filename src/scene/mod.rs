@@ -720,6 +720,7 @@ impl Scene {
             self.point_lights_on_surfaces(),
             self.dim_emission(),
             self.no_emission(),
+            self.no_surfaces(),
         ]
         .into_iter()
         .flatten()
@@ -734,6 +735,18 @@ impl Scene {
     pub fn no_emission(&self) -> Option<String> {
         self.light_sampler.is_none().then(|| {
             "nothing in the scene emits light (no light or emitter, or every one of zero power): the image is black"
+                .to_string()
+        })
+    }
+
+    /// A warning if no triangle has area (no object, an inline mesh without
+    /// indices, or every triangle degenerate, as under a glTF node scaled
+    /// by 0): nothing but an environment can reach the camera. Such scenes
+    /// rendered black without a word (a review, session 53).
+    pub fn no_surfaces(&self) -> Option<String> {
+        (self.accel.len() == self.accel.degenerate().len()).then(|| {
+            "no surface in the scene has area (no object, or every triangle degenerate): the image shows at most the \
+             environment"
                 .to_string()
         })
     }
@@ -925,6 +938,24 @@ mod tests {
         assert!(warns(&[0.0, 0.0]));
         assert!(!warns(&[1e-30]));
         assert!(!warns(&[0.0, 1.0]));
+    }
+
+    /// A scene without a triangle of area is warned of: none at all, or
+    /// only a degenerate one; one triangle with area is not.
+    #[test]
+    fn a_scene_without_surfaces_is_warned_of() {
+        let warns = |positions: Vec<Vec3A>| {
+            let camera = Camera::new(Vec3A::new(0.0, 0.0, -5.0), Vec3A::ZERO, Vec3A::Y, 40.0, 8, 8);
+            let mut b = SceneBuilder::new(camera);
+            if !positions.is_empty() {
+                let grey = b.material("grey", Bsdf::Diffuse(Diffuse::new(Spectrum::Constant(0.5))));
+                b.mesh("m", Mesh { positions, normals: Vec::new(), indices: vec![[0, 1, 2]] }, grey, None);
+            }
+            b.build().no_surfaces().is_some()
+        };
+        assert!(warns(Vec::new()));
+        assert!(warns(vec![Vec3A::ZERO, Vec3A::X, 2.0 * Vec3A::X]));
+        assert!(!warns(vec![Vec3A::ZERO, Vec3A::X, Vec3A::Y]));
     }
 
     /// Triangles whose normals f32 cannot hold are counted and warned of:
