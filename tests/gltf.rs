@@ -309,6 +309,17 @@ fn unsupported_features_are_named_errors() {
         "AAABAAIAAAAAAAAAAAAAAAAAAAAAAIA/AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAAAAAAAgD8AAAAAAAAAAAAAgD8=";
     with_normals(zero).expect("the control, finite normals");
 
+    // A node scaled by 0 on one axis: its mesh collapses, said by a
+    // warning; the control, an ordinary scale, has none.
+    let scaled = |scale: [f32; 3]| {
+        let mut v = read_json(&dir().join("Triangle.gltf"));
+        v["nodes"][0]["scale"] = json!(scale);
+        parse(&v, "Triangle (scaled)").unwrap().messages
+    };
+    let singular = "nodes[0] (meshes[0]): the node's transform is singular (a scale of 0)";
+    assert!(has(&scaled([1.0, 0.0, 1.0]), singular), "{:?}", scaled([1.0, 0.0, 1.0]));
+    assert!(!has(&scaled([1.0, 2.0, 1.0]), "singular"), "{:?}", scaled([1.0, 2.0, 1.0]));
+
     // A triangle too large for f32 normals (it would vanish from the BVH).
     let mut v = read_json(&dir().join("Triangle.gltf"));
     v["nodes"][0]["scale"] = json!([1e10, 1e10, 1e10]);

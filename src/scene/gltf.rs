@@ -695,6 +695,11 @@ impl<'a> Importer<'a> {
         content: &mut Content,
     ) -> Result<(), LoadError> {
         let what = format!("{node_label} ({})", label("meshes", mesh.index(), mesh.name()));
+        // glTF allows a zero scale (an object hidden by animation), but a
+        // still scene shows nothing of such a mesh (a review, session 53).
+        if world.matrix3.determinant() == 0.0 {
+            self.warn(&what, "the node's transform is singular (a scale of 0): its mesh has no area and is not seen");
+        }
         if node.weights().is_some() || mesh.weights().is_some() {
             self.warn(&what, "morph target weights are ignored: the base shape is rendered");
         }
