@@ -24,23 +24,32 @@ pub struct Sampler {
 /// 2^-24: a 24-bit integer times it is a float in [0, 1), exactly.
 const UNIT_24: f32 = 1.0 / (1u32 << 24) as f32;
 
+/// SplitMix64's increment (Steele et al. 2014), 2^64 / phi.
+const GOLDEN_GAMMA: u64 = 0x9E37_79B9_7F4A_7C15;
+
 impl Sampler {
     /// The state is what `Xoshiro256PlusPlus::seed_from_u64(key)` makes,
     /// SplitMix64's next four outputs from `key`, written here so that it
     /// inlines: that call, out of line, filled a byte buffer through a
-    /// generic `fill_bytes` (~50 instructions a sample, 0.9 % of `path`'s).
+    /// generic `fill_bytes` (1.4 % of `path`'s time by `perf`; inlined, 0.15 %
+    /// fewer instructions, docs/performance-log.md, "Session 53").
     /// The crate's fallback for an all-zero state never applies: `mix64` is
     /// a bijection, so of four distinct inputs at most one maps to 0.
     #[inline]
     pub fn new(seed: u64, stream: u64, index: u64) -> Self {
-        const GOLDEN_GAMMA: u64 = 0x9E37_79B9_7F4A_7C15;
-        let key = mix64(seed ^ mix64(stream.wrapping_add(mix64(index ^ GOLDEN_GAMMA))));
+        let key = Self::key(seed, stream, index);
         let mut state = [0u8; 32];
         for (i, word) in state.chunks_exact_mut(8).enumerate() {
             let x = key.wrapping_add(GOLDEN_GAMMA.wrapping_mul(i as u64 + 1));
             word.copy_from_slice(&mix64(x).to_le_bytes());
         }
         Self { rng: Xoshiro256PlusPlus::from_seed(state) }
+    }
+
+    /// The 64-bit key of the stream (seed, stream, index).
+    #[inline]
+    fn key(seed: u64, stream: u64, index: u64) -> u64 {
+        mix64(seed ^ mix64(stream.wrapping_add(mix64(index ^ GOLDEN_GAMMA))))
     }
 
     /// A uniform number in [0, 1).
@@ -349,6 +358,21 @@ mod tests {
         ChiSquared::new((G * G - 1) as f64).unwrap().sf(chi2)
     }
 
+    /// `Sampler::new` seeds the generator exactly as the crate's
+    /// `seed_from_u64` of the same key does (same draws), for keys from
+    /// many (seed, stream, index) triples, the zero triple among them.
+    /// Fails if a word of the state is mixed, ordered or offset otherwise.
+    #[test]
+    fn sampler_state_is_seed_from_u64_of_its_key() {
+        for (seed, stream, index) in (0..64u64).map(|i| (i / 16, i % 16 * 7919, i * 0x9E37)).chain([(u64::MAX, 3, 5)]) {
+            let key = Sampler::key(seed, stream, index);
+            let (mut ours, mut crates) = (Sampler::new(seed, stream, index), Xoshiro256PlusPlus::seed_from_u64(key));
+            for _ in 0..8 {
+                assert_eq!(ours.get_bits(), crates.next_u64(), "({seed}, {stream}, {index})");
+            }
+        }
+    }
+
     /// A 2D point takes its coordinates from disjoint bits of one 64-bit
     /// step (63-40 and 31-8, checked exactly against the generator), and
     /// the draws are uniform on the square, at the 32 x 32 grid of their
@@ -357,21 +381,6 @@ mod tests {
     /// 2i, 2i + 1, so that no draw is in two points). Chi-square on 2^18
     /// points per check, each at alpha 1e-4. Negative control: coordinates
     /// from overlapping bits of one step (63-40 and 61-38) are rejected.
-    /// `Sampler::new` seeds the generator exactly as the crate's
-    /// `seed_from_u64` of the same key does (same draws), for keys from
-    /// many (seed, stream, index) triples, the zero triple among them.
-    /// Fails if a word of the state is mixed, ordered or offset otherwise.
-    #[test]
-    fn sampler_state_is_seed_from_u64_of_its_key() {
-        for (seed, stream, index) in (0..64u64).map(|i| (i / 16, i % 16 * 7919, i * 0x9E37)).chain([(u64::MAX, 3, 5)]) {
-            let key = mix64(seed ^ mix64(stream.wrapping_add(mix64(index ^ 0x9E37_79B9_7F4A_7C15))));
-            let (mut ours, mut crates) = (Sampler::new(seed, stream, index), Xoshiro256PlusPlus::seed_from_u64(key));
-            for _ in 0..8 {
-                assert_eq!(ours.get_bits(), crates.next_u64(), "({seed}, {stream}, {index})");
-            }
-        }
-    }
-
     #[test]
     fn sampler_points_are_uniform_and_independent() {
         const N: u64 = 1 << 18;
