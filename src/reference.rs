@@ -71,8 +71,16 @@ pub struct ReferenceMeta {
 
 impl ReferenceMeta {
     /// The block statistics the tests compare with (`stats::Verdict`); Y's
-    /// mean is that of the block means, Y being linear in them.
+    /// mean is that of the block means, Y being linear in them. Refused
+    /// for a reference that dropped samples (its means leave them out, as
+    /// `stats::render_passes` refuses for the estimates compared with it).
     pub fn colour_stats(&self) -> Result<ColourStats> {
+        ensure!(
+            self.dropped_samples.total() == 0,
+            "the reference of {} dropped {}; its means leave them out",
+            self.scene,
+            self.dropped_samples.describe("samples")
+        );
         ensure!(
             self.block_y_stderr.len() == self.block_mean.len(),
             "the reference of {} has no luminance standard errors (made before they were recorded); remake it: {}",
@@ -163,4 +171,21 @@ pub fn read_reference(exr: &Path) -> Result<(Vec<[f32; 3]>, ReferenceMeta)> {
     let (w, h, image) = read_exr(exr)?;
     ensure!((w, h) == (meta.width, meta.height), "{}: size {w}x{h} differs from its sidecar", exr.display());
     Ok((image, meta))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A stored reference gives its statistics; the same one with a
+    /// dropped sample is refused, naming it.
+    #[test]
+    fn a_reference_that_dropped_samples_is_refused() {
+        let json = include_str!("../tests/references/cornell-box.json");
+        let mut meta: ReferenceMeta = serde_json::from_str(json).unwrap();
+        assert!(meta.colour_stats().is_ok());
+        meta.dropped_samples.nan = 1;
+        let e = meta.colour_stats().unwrap_err().to_string();
+        assert!(e.contains("dropped 1 samples (1 NaN"), "{e}");
+    }
 }

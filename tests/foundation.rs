@@ -166,6 +166,37 @@ impl Integrator for PanicsAt {
     }
 }
 
+/// An estimator whose samples of one pixel are `value` (1 elsewhere).
+struct ValueAt(UVec2, f32);
+
+impl Integrator for ValueAt {
+    fn sample(
+        &self,
+        _: &Scene,
+        pixel: UVec2,
+        _: &mut Sampler,
+        _: &mut SampledWavelengths,
+        _: &mut Workspace,
+    ) -> SampledSpectrum {
+        SampledSpectrum::splat(if pixel == self.0 { self.1 } else { 1.0 })
+    }
+}
+
+/// The statistical tests' passes refuse a dropped sample (the film leaves
+/// it out, which biases the image by less than their controls can see);
+/// the control, a pixel of 0, renders.
+#[test]
+fn statistics_refuse_passes_that_dropped_samples() {
+    let s = scene("cornell-box.json", 8, 8);
+    let pixel = UVec2::new(5, 2);
+    for value in [f32::NAN, f32::INFINITY, -1.0] {
+        let result = std::panic::catch_unwind(|| render_passes(&s, &ValueAt(pixel, value), 1, 2, 7, 1));
+        assert!(result.is_err(), "a sample of {value} went unreported");
+    }
+    let images = render_passes(&s, &ValueAt(pixel, 0.0), 1, 2, 7, 1);
+    assert_eq!(images[1][(2 * 8 + 5) as usize], [0.0; 3]);
+}
+
 #[test]
 fn a_panicking_sample_stops_the_render() {
     let (w, h) = (160, 160);

@@ -326,7 +326,8 @@ fn rough_surfaces_show_their_directional_albedo() {
                 // rarely land on the patch in view (about 1% of them), and at
                 // 4096 light paths per pixel it still misses a 5% bias on the
                 // dielectric. Its rough BSDFs are proven by the agreement on
-                // the glossy Cornell box (tests/agreement.rs, 2% power).
+                // the glossy Cornell box (tests/agreement.rs, whose matrix
+                // rejects a 5% bias of each estimator there).
                 if i.name == "light" {
                     continue;
                 }
