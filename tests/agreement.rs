@@ -75,8 +75,10 @@ fn matrix_family() -> usize {
     n + n * (n - 1) / 2
 }
 
-/// Every integrator against the reference and against every other one.
-fn matrix(scene_file: &str) {
+/// Every integrator against the reference and against every other one,
+/// and each estimate scaled by `control` against the reference (the
+/// negative control: it must be rejected).
+fn matrix(scene_file: &str, control: f64) {
     let reference = reference(scene_file);
     // Seeds of their own (an audit, session 36): with one seed for all,
     // the estimators' first dimensions (wavelengths, pixel positions) were
@@ -94,13 +96,10 @@ fn matrix(scene_file: &str) {
         if !c.passed() {
             failures.push(format!("{name} vs reference: {c}"));
         }
-        // Negative control: the matrix can see a 5 % bias of each estimator
-        // (the dispersive box's caustics of single wavelengths are the
-        // weakest: at 128 spp a 2 % one passed for three estimators).
-        let c = Verdict::versus(&s.scaled(1.05), &reference, family);
-        eprintln!("{scene_file}: {name} x1.05 vs reference (negative control): {c}");
+        let c = Verdict::versus(&s.scaled(control), &reference, family);
+        eprintln!("{scene_file}: {name} x{control} vs reference (negative control): {c}");
         if c.passed() {
-            failures.push(format!("{name} x1.05 went undetected: {c}"));
+            failures.push(format!("{name} x{control} went undetected: {c}"));
         }
         for (other, t) in &all[i + 1..] {
             let c = Verdict::versus(s, t, family);
@@ -113,23 +112,28 @@ fn matrix(scene_file: &str) {
     assert!(failures.is_empty(), "{scene_file}:\n{}", failures.join("\n"));
 }
 
+/// The box's matrix sees a 2 % bias of each estimator (Y chi-square p
+/// 9e-17 to 7e-54 at seed offset 0, against the family's 1e-4).
 #[test]
 fn agreement_matrix_cornell_box() {
-    matrix("cornell-box.json");
+    matrix("cornell-box.json", 1.02);
 }
 
 /// Rough gold and rough glass: glossy reflection, rough refraction seen by
-/// the camera, caustics through rough glass.
+/// the camera, caustics through rough glass. The control is 5 %: BSDF
+/// sampling alone (simple_path) would not see 2 % here.
 #[test]
 fn agreement_matrix_cornell_glossy() {
-    matrix("cornell-glossy.json");
+    matrix("cornell-glossy.json", 1.05);
 }
 
 /// A dispersive (SF11) sphere seen only through diffuse bounces: paths through
-/// it keep only their hero wavelength, in every estimator.
+/// it keep only their hero wavelength, in every estimator. The control is
+/// 5 %: the caustics of single wavelengths are the weakest (at 128 spp a
+/// 2 % bias passed for three estimators).
 #[test]
 fn agreement_matrix_cornell_dispersion() {
-    matrix("cornell-dispersion.json");
+    matrix("cornell-dispersion.json", 1.05);
 }
 
 /// Rough dispersive glass: the dispersive box's SF11 sphere made rough
@@ -180,17 +184,14 @@ fn light_and_bdpt_agree_on_the_prism_rainbow() {
     assert!(!c.passed(), "a 10% bias of light tracing passed: {c}");
 }
 
-/// The harness rejects a 2% bias and a last bounce dropped (max depth 3 on
-/// the Cornell box), for every integrator, against the stored reference,
-/// at the matrix's family (its threshold).
+/// The harness rejects a last bounce dropped (max depth 3 on the Cornell
+/// box), for every integrator, against the stored reference, at the
+/// matrix's family (its threshold; a 2 % bias is the box matrix's own
+/// control).
 #[test]
 fn agreement_negative_controls() {
     let reference = reference("cornell-box.json");
     for i in INTEGRATORS {
-        let s = stats("cornell-box.json", i.name, 1024, 41);
-        let c = Verdict::versus(&s.scaled(1.02), &reference, matrix_family());
-        eprintln!("{} x1.02: {c}", i.name);
-        assert!(!c.passed(), "{}: 2% bias passed: {c}", i.name);
         let c = Verdict::versus(&stats("cornell-box.json", i.name, 3, 42), &reference, matrix_family());
         eprintln!("{} max depth 3: {c}", i.name);
         assert!(!c.passed(), "{}: dropped bounces passed: {c}", i.name);
