@@ -224,6 +224,25 @@ const CASES: &[Case] = &[
         words: &["objects[0].shape.indices[0]: expected 3 vertex indices, got 4"],
     },
     Case {
+        id: "mesh-without-triangles",
+        edits: &[(
+            "{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1}",
+            "{\"type\": \"mesh\", \"positions\": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], \"indices\": []}",
+        )],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:4:",
+        words: &["objects[0].shape.indices: no triangles"],
+    },
+    Case {
+        id: "two-sided-without-emission",
+        edits: &[("\"material\": \"white\"}]", "\"material\": \"white\", \"two_sided\": true}]")],
+        args: &[],
+        out: "out.exr",
+        position: "s.json:4:",
+        words: &["objects[0].two_sided: applies to an emitter only"],
+    },
+    Case {
         id: "spectrum-overflow",
         edits: &[("\"radiance\": 1.0", "\"radiance\": {\"rgb\": [1, 1, 1], \"scale\": 3e38}")],
         args: &[],

@@ -224,6 +224,22 @@ fn bad_arguments_fail_clearly() {
     let d = temp_dir("args");
     let out = d.join("o");
     let o = out.to_str().unwrap();
+    let given = ["converge", "scenes/white-room.json", "--spp", "2", "--reference", "r.exr", "--out", o];
+    let with_given = |more: [&'static str; 2]| -> Vec<&str> { given.iter().copied().chain(more).collect() };
+    // A stored reference with the options of one rendered here, which
+    // would be ignored (a review, session 54).
+    let ignored = [
+        with_given(["--reference-passes", "0"]),
+        with_given(["--reference-integrator", "magic"]),
+        with_given(["--reference-out", "x.exr"]),
+    ];
+    for args in &ignored {
+        let r = prism(args);
+        let e = String::from_utf8_lossy(&r.stderr);
+        assert!(!r.status.success() && e.contains("cannot be used with"), "{args:?}: {e}");
+    }
+    let e = String::from_utf8_lossy(&prism(&given).stderr).to_string();
+    assert!(!e.contains("cannot be used with"), "the stored reference alone was refused: {e}");
     let cases: [(&[&str], &str); 4] = [
         (&["converge", "scenes/white-room.json", "--reference-spp", "4", "--out", o], "give a budget"),
         (&["converge", "scenes/white-room.json", "--spp", "4", "--out", o], "give the reference"),

@@ -121,8 +121,9 @@ pub struct ConvergeArgs {
     #[arg(long, value_delimiter = ',', default_value = "power")]
     pub mis: Vec<MisHeuristic>,
     /// Reference EXR (its sidecar, from `prism reference`, `render` or
-    /// `merge`, is used if present).
-    #[arg(long, conflicts_with = "reference_spp")]
+    /// `merge`, is used if present). The options of a reference rendered
+    /// here are refused with it (they would be ignored).
+    #[arg(long, conflicts_with_all = ["reference_spp", "reference_integrator", "reference_passes", "reference_out"])]
     pub reference: Option<PathBuf>,
     /// Render the reference here with this many samples per pixel in total.
     #[arg(long)]
@@ -623,6 +624,12 @@ fn check_config(cfg: &ConvergeConfig) -> Result<()> {
         ensure!(t.is_finite() && t > 0.0, "--time must be a positive number of seconds");
     }
     ensure!(cfg.max_spp != Some(0), "--spp must be at least 1");
+    // Budgets, charts and efficiencies in CPU seconds need them read (they
+    // fell back to wall seconds without a word; a review, session 54).
+    ensure!(
+        cfg.clock == Clock::Wall || process_cpu_seconds().is_some(),
+        "--clock cpu: this system gives no CPU time of the process (/proc/self/stat); use --clock wall"
+    );
     // 2^exposure must be a normal f32: 0 or infinity would make black panels.
     ensure!(
         cfg.exposure.is_none_or(|e| 2f32.powf(e).is_normal()),
@@ -826,6 +833,10 @@ fn converge_one(
         let stats = render(scene, integrator, &opts, &mut film, n..target);
         cpu = match (cpu, cpu0, process_cpu_seconds()) {
             (Some(c), Some(a), Some(b)) => Some(c + (b - a)),
+            // A curve half in CPU and half in wall seconds would be wrong.
+            _ if cfg.clock == Clock::Cpu => {
+                bail!("--clock cpu: the process's CPU time could not be read at {target} spp")
+            }
             _ => None,
         };
         n = target;

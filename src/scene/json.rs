@@ -972,6 +972,11 @@ impl<'a> Ctx<'a> {
             return Err(self.err(&with(path, "normals"), "needs one normal per position"));
         }
         let indices: Vec<[u32; 3]> = m.indices.iter().map(|t| t.0).collect();
+        // As an OBJ without faces is refused: the object (a lamp, say)
+        // would vanish without a word (a review, session 54).
+        if indices.is_empty() {
+            return Err(self.err(&with(path, "indices"), "no triangles"));
+        }
         if let Some(i) = indices.iter().flatten().find(|&&i| i as usize >= positions.len()) {
             return Err(
                 self.err(&with(path, "indices"), format!("index {i} is out of range ({} positions)", positions.len()))
@@ -1260,6 +1265,13 @@ fn objects(
         check_triangle_count(b.triangle_count() + mesh.len()).map_err(|e| ctx.err(&with(&path, "shape"), e))?;
         let emission = match &o.emission {
             Some(e) => Some((ctx.radiance(&with(&path, "emission"), e)?, o.two_sided)),
+            // Every BSDF scatters on both sides; the flag is the emitter's
+            // (it was ignored without a word; a review, session 54).
+            None if o.two_sided => {
+                return Err(
+                    ctx.err(&with(&path, "two_sided"), "applies to an emitter only (give the object an emission)")
+                )
+            }
             None => None,
         };
         b.mesh(&name, mesh, material, emission);

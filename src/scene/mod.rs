@@ -739,9 +739,9 @@ impl Scene {
         })
     }
 
-    /// A warning if no triangle has area (no object, an inline mesh without
-    /// indices, or every triangle degenerate, as under a glTF node scaled
-    /// by 0): nothing but an environment can reach the camera. Such scenes
+    /// A warning if no triangle has area (no object, or every triangle
+    /// degenerate, as under a glTF node scaled by 0): nothing but an
+    /// environment can reach the camera. Such scenes
     /// rendered black without a word (a review, session 53).
     pub fn no_surfaces(&self) -> Option<String> {
         (self.accel.len() == self.accel.degenerate().len()).then(|| {
