@@ -118,7 +118,7 @@ impl Provenance {
         Provenance { commit: env!("PRISM_COMMIT").to_string(), build_target: crate::build_target() }
     }
 
-    /// Of the sums of both: each commit and build named once, in order.
+    /// Of the sums of both: each commit and build named once, sorted.
     pub fn combined(&self, other: &Provenance) -> Provenance {
         let join = |a: &str, b: &str| {
             let mut names: Vec<&str> = a.split("; ").chain(b.split("; ")).collect();

@@ -148,28 +148,15 @@ fn the_top_sample_indices_render() {
     }
 }
 
-/// An estimator that panics on one pixel: the render must re-raise the
-/// panic, not wait forever for the lost tile's merge.
-struct PanicsAt(UVec2);
-
-impl Integrator for PanicsAt {
-    fn sample(
-        &self,
-        _: &Scene,
-        pixel: UVec2,
-        _: &mut Sampler,
-        _: &mut SampledWavelengths,
-        _: &mut Workspace,
-    ) -> SampledSpectrum {
-        assert_ne!(pixel, self.0, "planted panic");
-        SampledSpectrum::ONE
-    }
+/// What an estimator has planted at one pixel (its samples are 1 elsewhere).
+enum Plant {
+    Panic,
+    Value(f32),
 }
 
-/// An estimator whose samples of one pixel are `value` (1 elsewhere).
-struct ValueAt(UVec2, f32);
+struct PlantedAt(UVec2, Plant);
 
-impl Integrator for ValueAt {
+impl Integrator for PlantedAt {
     fn sample(
         &self,
         _: &Scene,
@@ -178,7 +165,11 @@ impl Integrator for ValueAt {
         _: &mut SampledWavelengths,
         _: &mut Workspace,
     ) -> SampledSpectrum {
-        SampledSpectrum::splat(if pixel == self.0 { self.1 } else { 1.0 })
+        match self.1 {
+            _ if pixel != self.0 => SampledSpectrum::ONE,
+            Plant::Panic => panic!("planted panic"),
+            Plant::Value(v) => SampledSpectrum::splat(v),
+        }
     }
 }
 
@@ -190,13 +181,15 @@ fn statistics_refuse_passes_that_dropped_samples() {
     let s = scene("cornell-box.json", 8, 8);
     let pixel = UVec2::new(5, 2);
     for value in [f32::NAN, f32::INFINITY, -1.0] {
-        let result = std::panic::catch_unwind(|| render_passes(&s, &ValueAt(pixel, value), 1, 2, 7, 1));
+        let result = std::panic::catch_unwind(|| render_passes(&s, &PlantedAt(pixel, Plant::Value(value)), 1, 2, 7, 1));
         assert!(result.is_err(), "a sample of {value} went unreported");
     }
-    let images = render_passes(&s, &ValueAt(pixel, 0.0), 1, 2, 7, 1);
+    let images = render_passes(&s, &PlantedAt(pixel, Plant::Value(0.0)), 1, 2, 7, 1);
     assert_eq!(images[1][(2 * 8 + 5) as usize], [0.0; 3]);
 }
 
+/// A sample that panics on one pixel: the render must re-raise the panic,
+/// not wait forever for the lost tile's merge.
 #[test]
 fn a_panicking_sample_stops_the_render() {
     let (w, h) = (160, 160);
@@ -206,7 +199,7 @@ fn a_panicking_sample_stops_the_render() {
         let result = std::panic::catch_unwind(|| {
             let mut film = Film::new(w, h);
             let opts = RenderOptions { seed: 1, threads: 2, progress: false };
-            render(&s, &PanicsAt(pixel), &opts, &mut film, 0..64);
+            render(&s, &PlantedAt(pixel, Plant::Panic), &opts, &mut film, 0..64);
         });
         assert!(result.is_err(), "no panic for {pixel}");
     }
