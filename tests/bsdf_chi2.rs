@@ -211,8 +211,8 @@ fn chi2_dielectric_wo_grazing_inside() {
 }
 
 /// The same routine at the same corrected significance must reject a pdf that
-/// is 5% off in one lobe, pdfs of a slightly wrong shape, and a pdf of 0
-/// where the sampler goes.
+/// is 5% off in one lobe, pdfs of a slightly wrong shape, a pdf of 0
+/// where the sampler goes, and a sampler that loses 1% of its samples.
 #[test]
 fn chi2_negative_controls() {
     let alpha = corrected_alpha();
@@ -247,6 +247,15 @@ fn chi2_negative_controls() {
     // again with the fine cubature, which must still find them empty.
     let wrong = |wi: Vec3A| if wi.z > 0.0 && wi.x < 0.5 { wi.z as f64 / std::f64::consts::PI } else { 0.0 };
     rows.push(("NEG diffuse pdf 0 where x > 0.5".into(), run_with_pdf(&lambert, &wrong)));
+    // Directions of the right shape, but 1 % of the samples lost (a bias of
+    // 1 % in every render): only the absent samples' cell sees it.
+    let lossy = |uc: f32, u2| {
+        let s = (uc >= 0.01).then(|| lambert.bsdf.sample(lambert.wo, uc, u2, &l, TransportMode::Radiance))??;
+        Some(s.wi)
+    };
+    let pdf = |wi: Vec3A| lambert.bsdf.pdf(lambert.wo, wi, &l, TransportMode::Radiance) as f64;
+    let o = chi2_test(lossy, &pdf, &lambert.grid, N_SAMPLES, case_seed("lossy"));
+    rows.push(("NEG diffuse sampler losing 1% of its samples".into(), o));
     let accepted: Vec<&String> =
         rows.iter().filter(|(name, o)| !report(name, o, 0.0, alpha)).map(|(name, _)| name).collect();
     assert!(accepted.is_empty(), "negative controls NOT rejected: {accepted:?}");

@@ -9,8 +9,13 @@
 //!   lets a histogram resolve a lobe too narrow for an equal-area grid when the
 //!   axis is put on the lobe. Any fixed partition gives a valid test.
 //! - Observed counts: `n_samples` draws of the sampler, binned; failed or
-//!   specular samples are simply absent (their probability is 1 - integral of
-//!   the pdf, so the expected counts below account for them).
+//!   specular samples land in no cell of the sphere and are counted as one
+//!   cell more, which expects n (1 - integral of the pdf): the cells then
+//!   partition all n samples, as Pearson's terms - 1 degrees of freedom
+//!   assume, and a sampler that fails more often than its pdf leaves room
+//!   for is seen (until session 54 they were left out: the total was free,
+//!   one degree of freedom uncounted, and a sampler losing 1 % of its
+//!   samples passed).
 //! - Expected counts: n_samples times the integral of the pdf over each cell,
 //!   by adaptive 3x3 Gauss-Legendre cubature (each cell split at least once;
 //!   a square is refined until four children agree with their parent within
@@ -26,7 +31,8 @@
 //! - Sanity failures before any statistic (Mitsuba, pbrt): a sample that is
 //!   not a unit vector, a negative or non-finite expected count, a pdf
 //!   integral above 1.1, or more than 1e-5 n samples in cells the pdf says are
-//!   empty (pbrt's floating-point leniency).
+//!   empty (pbrt's floating-point leniency), the absent samples' cell
+//!   included.
 
 use glam::{DVec3, Vec2, Vec3A};
 use prism::sampling::Sampler;
@@ -299,6 +305,8 @@ pub fn chi2_test(
         }
     }
     let pdf_integral = exp.iter().sum::<f64>() / n;
+    obs.push(n - sampled as f64);
+    exp.push((n * (1.0 - pdf_integral)).max(0.0));
     if let Some(c) = exp.iter().position(|e| !(e.is_finite() && *e >= 0.0)) {
         error.get_or_insert(format!("cell {c}: expected count {}", exp[c]));
     }
@@ -315,7 +323,8 @@ pub fn chi2_test(
 }
 
 /// Pearson's statistic with cells pooled (sorted by expected count) until each
-/// term expects at least `MIN_EXPECTED`.
+/// term expects at least `MIN_EXPECTED`. The last cell is the absent
+/// samples' (in `worst` its direction is zero).
 fn pooled_chi2(obs: &[f64], exp: &[f64], grid: &SphereGrid) -> (f64, usize, Vec<(f64, f64, Vec3A)>) {
     let mut order: Vec<usize> = (0..obs.len()).collect();
     order.sort_by(|&a, &b| exp[a].total_cmp(&exp[b]));
@@ -346,7 +355,12 @@ fn pooled_chi2(obs: &[f64], exp: &[f64], grid: &SphereGrid) -> (f64, usize, Vec<
         .take(6)
         .map(|&(_, o, e, c)| {
             let (i, j) = (c / grid.n_phi, c % grid.n_phi);
-            (o, e, grid.direction((i as f64 + 0.5) * dt, (j as f64 + 0.5) * dp))
+            let w = if c == grid.cells() {
+                Vec3A::ZERO
+            } else {
+                grid.direction((i as f64 + 0.5) * dt, (j as f64 + 0.5) * dp)
+            };
+            (o, e, w)
         })
         .collect();
     (chi2, terms.saturating_sub(1), worst)
