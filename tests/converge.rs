@@ -240,8 +240,25 @@ fn bad_arguments_fail_clearly() {
     }
     let e = String::from_utf8_lossy(&prism(&given).stderr).to_string();
     assert!(!e.contains("cannot be used with"), "the stored reference alone was refused: {e}");
-    let cases: [(&[&str], &str); 4] = [
+    let cases: [(&[&str], &str); 5] = [
         (&["converge", "scenes/white-room.json", "--reference-spp", "4", "--out", o], "give a budget"),
+        (
+            &[
+                "converge",
+                "scenes/white-room.json",
+                "--integrators",
+                "path,bdpt:uniform",
+                "--mis",
+                "balance",
+                "--spp",
+                "2",
+                "--reference-spp",
+                "2",
+                "--out",
+                o,
+            ],
+            "--mis applies to a bare MIS-aware integrator",
+        ),
         (&["converge", "scenes/white-room.json", "--spp", "4", "--out", o], "give the reference"),
         (
             &[

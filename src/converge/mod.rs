@@ -245,6 +245,7 @@ impl IntegratorSpec {
     pub fn parse_list(list: &str, mis: &[MisHeuristic]) -> Result<Vec<IntegratorSpec>> {
         let mis = if mis.is_empty() { &[MisHeuristic::Power][..] } else { mis };
         let mut specs = Vec::new();
+        let mut bare_aware = false;
         for item in list.split(',').map(str::trim).filter(|s| !s.is_empty()) {
             let (name, heuristic) = match item.split_once(':') {
                 Some((n, h)) => (n, Some(h.parse::<MisHeuristic>().map_err(anyhow::Error::msg)?)),
@@ -254,6 +255,7 @@ impl IntegratorSpec {
             // A heuristic suffix on an integrator that ignores it would
             // label a line with a setting it does not use.
             let aware = integrators::reads_mis(name);
+            bare_aware |= aware && heuristic.is_none();
             match heuristic {
                 Some(_) if !aware => {
                     let names: Vec<&str> = INTEGRATORS.iter().filter(|i| i.reads_mis).map(|i| i.name).collect();
@@ -276,6 +278,12 @@ impl IntegratorSpec {
             }
         }
         ensure!(!specs.is_empty(), "no integrators given");
+        // As a heuristic suffix on an integrator that ignores it: a --mis
+        // that no line takes would be ignored (a review, session 54).
+        ensure!(
+            bare_aware || mis == [MisHeuristic::Power],
+            "--mis applies to a bare MIS-aware integrator (bdpt) in --integrators, and none is given"
+        );
         // The same estimator twice (`bdpt,bdpt:power`) would be ranked
         // against itself.
         for (i, s) in specs.iter().enumerate() {
@@ -987,6 +995,9 @@ mod tests {
         assert!(p("bdpt:magic", &[]).is_err());
         assert!(p("nosuch", &[]).is_err());
         assert!(p("path,path", &[]).is_err());
+        // A --mis that no line takes; power, the default, goes unnoticed.
+        assert!(p("path,bdpt:uniform", &[MisHeuristic::Balance]).is_err());
+        assert!(p("path,light", &[MisHeuristic::Power]).is_ok());
     }
 
     /// Against a noisy reference relMSE is V/n + floor: the fit over every
