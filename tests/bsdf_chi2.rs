@@ -253,8 +253,8 @@ fn chi2_negative_controls() {
         let s = (uc >= 0.01).then(|| lambert.bsdf.sample(lambert.wo, uc, u2, &l, TransportMode::Radiance))??;
         Some(s.wi)
     };
-    let pdf = |wi: Vec3A| lambert.bsdf.pdf(lambert.wo, wi, &l, TransportMode::Radiance) as f64;
-    let o = chi2_test(lossy, &pdf, &lambert.grid, N_SAMPLES, case_seed("lossy"));
+    let lambert_pdf = |wi: Vec3A| lambert.bsdf.pdf(lambert.wo, wi, &l, TransportMode::Radiance) as f64;
+    let o = chi2_test(lossy, &lambert_pdf, &lambert.grid, N_SAMPLES, case_seed("lossy"));
     rows.push(("NEG diffuse sampler losing 1% of its samples".into(), o));
     let accepted: Vec<&String> =
         rows.iter().filter(|(name, o)| !report(name, o, 0.0, alpha)).map(|(name, _)| name).collect();
