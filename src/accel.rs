@@ -400,12 +400,24 @@ impl Accel {
                             let tri = self.blocks[block as usize].vertices(lane as usize);
                             let Some(h) = lanes::hit_in_f64(r.o, r.d, &tri) else { continue };
                             // At one distance within the error (a ray
-                            // through an edge), the face it enters by wins;
-                            // a first hit only has to lie before t_max.
-                            let tie = best.is_some() && (h.t - best_t64).abs() <= h.err + best_err;
-                            if if tie { lanes::enters_by(&tri, &best_tri, r.d) } else { h.t < best_t64 } {
+                            // through an edge), the face it enters by wins,
+                            // and where neither does (coincident copies, a
+                            // concave edge) the least slot, as in
+                            // `Closest::takes` (a review, session 55: the
+                            // face met first won, so along every edge of a
+                            // duplicated surface a hairline took the other
+                            // copy); a first hit only has to lie before t_max.
+                            let slot = 4 * block + lane;
+                            let takes = match best {
+                                Some((best_slot, ..)) if (h.t - best_t64).abs() <= h.err + best_err => {
+                                    lanes::enters_by(&tri, &best_tri, r.d)
+                                        || (slot < best_slot && !lanes::enters_by(&best_tri, &tri, r.d))
+                                }
+                                _ => h.t < best_t64,
+                            };
+                            if takes {
                                 (best_t64, best_err, best_tri, *t_max) = (h.t, h.err, tri, h.t as f32);
-                                best = Some((4 * block + lane, h.b1, h.b2, 0.0));
+                                best = Some((slot, h.b1, h.b2, 0.0));
                             }
                         }
                         continue;

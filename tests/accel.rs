@@ -450,6 +450,49 @@ fn rays_through_shared_edges_and_vertices_never_slip_through() {
     assert!(naive_misses > 0, "the rays are too easy to tell a watertight test apart");
 }
 
+/// Coincident copies of a surface (a decal, a duplicated face) meet a ray at
+/// one distance, and the f32 test takes the least slot of the tied copies
+/// (`Closest::takes`), so the f64 retrace of hits near edges
+/// (`intersect_exact`) must too, or along every edge of a duplicated
+/// surface a hairline takes the other copy's material (a review, session
+/// 55). Five copies of a tilted grid, so that a triangle's copies span
+/// blocks of four slots, which the traversal meets from the highest slot
+/// down; rays at its edges and vertices and 1e-7 beside them. (Controls:
+/// with the retrace keeping the copy it met first, this test failed; with
+/// that rule and the planes of tilted copies told apart by their rounding,
+/// which made one copy "entered" from the other, it failed too.)
+#[test]
+fn exact_ties_between_coincident_copies_take_the_least_slot() {
+    let mut rng = Rand::new(55);
+    let tilt = Affine3A::from_rotation_x(0.7) * Affine3A::from_rotation_z(0.3);
+    let mut grid = Vec::new();
+    for i in 0..6 {
+        for j in 0..6 {
+            let corner = |u: i32, v: i32| Vec3A::new((i + u) as f32 * 0.3 - 0.9, (j + v) as f32 * 0.3 - 0.9, 0.0);
+            let mut quad = Mesh::quad([corner(0, 0), corner(1, 0), corner(1, 1), corner(0, 1)]);
+            quad.transform(tilt);
+            grid.extend(tris_of(&quad));
+        }
+    }
+    let copies = grid.repeat(5);
+    let accel = Accel::build(&copies);
+    let normal = geometric_normal(&copies[0]);
+    let (mut rays, mut apart) = (0, 0);
+    for target in edge_and_vertex_targets(&grid, &mut rng) {
+        for off in [Vec3A::ZERO, rng.unit() * 1e-7] {
+            let o = target + off + normal * 2.0 + rng.in_cube(0.5);
+            let ray = Ray::new(o, target + off - o);
+            let Some(h) = accel.intersect_exact(&ray, f32::INFINITY) else { continue };
+            let tied: Vec<u32> = (0..copies.len() as u32).filter(|&s| accel.vertices(s) == h.v).collect();
+            let least = *tied.iter().min().expect("the hit's own slot");
+            assert_eq!(h.slot, least, "ray to {target} + {off}: slot {} of copies {tied:?}", h.slot);
+            rays += 1;
+            apart += (tied.iter().any(|s| s / 4 != least / 4)) as u32;
+        }
+    }
+    assert!(rays > 1000 && apart > rays / 4, "{rays} rays, {apart} with copies in different blocks");
+}
+
 /// The offset origin must keep a spawned ray off the surface it leaves, at
 /// every scale, near and far from the world origin.
 #[test]

@@ -310,12 +310,23 @@ pub(super) fn hit_in_f64(o: Vec3A, d: Vec3A, tri: &[Vec3A; 3]) -> Option<HitF64>
 /// by `a`: crossing a's plane, it moves to the side where `b` lies (the
 /// side of b's vertex farthest from that plane), which at a convex edge is
 /// the solid's; at a concave one neither face passes this test. Free of
-/// the winding (a shell wound inward has its fronts inside).
+/// the winding (a shell wound inward has its fronts inside). A vertex
+/// within the rounding of a's plane (`rounding_bound`) counts as in it, so
+/// neither of two coplanar faces passes either, tilted or not.
 pub(super) fn enters_by(a: &[Vec3A; 3], b: &[Vec3A; 3], d: Vec3A) -> bool {
     let [p0, p1, p2] = a.map(|v| v.as_dvec3());
-    let n = (p1 - p0).cross(p2 - p0);
-    let far =
-        b.map(|w| n.dot(w.as_dvec3() - p0)).into_iter().fold(0.0f64, |f, s| if s.abs() > f.abs() { s } else { f });
+    let (e1, e2) = (p1 - p0, p2 - p0);
+    let (n, m) = (e1.cross(e2), abs_cross(e1, e2));
+    let height = |w: Vec3A| {
+        let v = w.as_dvec3() - p0;
+        let s = n.dot(v);
+        if s.abs() > rounding_bound(m, v) {
+            s
+        } else {
+            0.0
+        }
+    };
+    let far = b.map(height).into_iter().fold(0.0f64, |f, s| if s.abs() > f.abs() { s } else { f });
     far != 0.0 && (n.dot(d.as_dvec3()) > 0.0) == (far > 0.0)
 }
 
