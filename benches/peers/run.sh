@@ -93,9 +93,27 @@ if (( REF_SPP % REF_PASSES != 0 )); then
     exit 1
 fi
 
+# Debian packages the script needs: installed when it runs as root, else
+# it names them and stops.
+apt_install() { # PACKAGE... (WHY)
+    local why=${*: -1} packages=("${@:1:$#-1}")
+    if [[ $(id -u) == 0 ]] && command -v apt-get >/dev/null; then
+        echo "== installing ${packages[*]} (apt-get install -y ${packages[*]}): $why"
+        export DEBIAN_FRONTEND=noninteractive
+        apt-get install -y "${packages[@]}" >/dev/null ||
+            { apt-get update >/dev/null && apt-get install -y "${packages[@]}" >/dev/null; }
+    else
+        echo "error: $why; run: sudo apt-get install ${packages[*]}" >&2
+        exit 1
+    fi
+}
+# GNU time reads the renders' CPU seconds (step 4).
+[[ -x /usr/bin/time ]] || apt_install time "the CPU seconds of each render are read by /usr/bin/time"
+
 # --- 1. Mitsuba in a venv
 if ! "$VENV/bin/python" -c "import mitsuba, sys; sys.exit(mitsuba.__version__ != '$MITSUBA_VERSION')" 2>/dev/null; then
     echo "== installing mitsuba==$MITSUBA_VERSION into $VENV"
+    python3 -c 'import ensurepip' 2>/dev/null || apt_install python3-venv "python3 -m venv needs ensurepip"
     python3 -m venv "$VENV"
     "$VENV/bin/pip" install --quiet "mitsuba==$MITSUBA_VERSION" "drjit==$DRJIT_VERSION" "numpy==$NUMPY_VERSION"
 fi
@@ -112,15 +130,8 @@ find_llvm() {
 }
 if [[ -z ${DRJIT_LIBLLVM_PATH:-} ]]; then
     if ! DRJIT_LIBLLVM_PATH=$(find_llvm); then
-        if [[ $(id -u) == 0 ]]; then
-            echo "== installing libllvm19 (apt-get install -y libllvm19)"
-            export DEBIAN_FRONTEND=noninteractive
-            apt-get install -y libllvm19 >/dev/null || { apt-get update >/dev/null && apt-get install -y libllvm19 >/dev/null; }
-            DRJIT_LIBLLVM_PATH=$(find_llvm)
-        else
-            echo "error: Mitsuba's LLVM variants need libLLVM >= 19; run: sudo apt-get install libllvm19" >&2
-            exit 1
-        fi
+        apt_install libllvm19 "Mitsuba's LLVM variants need libLLVM >= 19"
+        DRJIT_LIBLLVM_PATH=$(find_llvm)
     fi
 fi
 export DRJIT_LIBLLVM_PATH
@@ -144,10 +155,11 @@ rm -f "$OUT"/runs/*.json "$OUT"/rounds/*.json
 cpu_field() { sed -n "s/^$1[[:space:]]*: *//p" /proc/cpuinfo | head -1; }
 # Where the host has more CPUs than THREADS, every timed run is pinned to
 # as many CPUs as it has threads (the first of those this process may
-# use): the thread that waits on a Dr.Jit task helps with its work
-# (nanothread's task_wait), so unpinned, Mitsuba could run THREADS + 1
-# threads against prism's THREADS (from an audit, session 50). On a host
-# of THREADS CPUs nothing is pinned.
+# use), so that neither renderer can use more CPUs than it is given (an
+# audit, session 50). Dr.Jit's pool of THREADS counts the thread that
+# waits on a task, which helps with its work (nanothread.h: THREADS - 1
+# workers), so Mitsuba runs THREADS threads either way (session 55). On a
+# host of THREADS CPUs nothing is pinned.
 PINNED=$( (( $(nproc) > THREADS )) && command -v taskset >/dev/null && echo true || echo false)
 pinned() { # N COMMAND...: COMMAND on N CPUs if PINNED
     local n=$1

@@ -79,6 +79,8 @@ def main():
     ap.add_argument("--prism", default="target/release/prism")
     ap.add_argument("--out", default="target/peers/scaling")
     a = ap.parse_args()
+    if not Path("/usr/bin/time").exists():
+        sys.exit("error: the peak memory is read by GNU time, /usr/bin/time; run: sudo apt-get install time")
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     base = json.loads(Path("scenes/cornell-box.json").read_text())
