@@ -222,6 +222,86 @@ fn out_of_range_factors_are_clamped_before_the_texture_mean() {
     assert!(blue[0] < 0.05 && blue[1] < 0.05 && blue[2] > 0.95, "reflectance {blue:?}, expected pure blue");
 }
 
+/// A 1 x 1 PNG of `rgb`, as a data URI (made outside prism: zlib and the
+/// PNG chunks by hand).
+fn png_uri(rgb: [u8; 3]) -> String {
+    let base64 = match rgb {
+        [0, 128, 255] => "iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAIAAACQd1PeAAAADElEQVR4nGNgaPgPAAIDAYAkYfWXAAAAAElFTkSuQmCC",
+        [128, 128, 128] => {
+            "iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAIAAACQd1PeAAAADElEQVR4nGNoaGgAAAMEAYFL09IQAAAAAElFTkSuQmCC"
+        }
+        _ => panic!("no PNG of {rgb:?} here"),
+    };
+    format!("data:image/png;base64,{base64}")
+}
+
+/// Texels of 128 tell the transfer functions apart, where 0 and 255 (the
+/// tests above) do not: read linear, 128 is 0.502; sRGB-decoded, 0.2159.
+/// glTF 2.0 (section 3.9.2) stores metallicRoughnessTexture linear and
+/// emissiveTexture in sRGB. Roughness (G) 0.502 is alpha 0.2520 (alpha =
+/// roughness^2, as for the factor), decoded it would be 0.0466; a grey
+/// emissive texel of 128 under emissiveFactor 1 emits a grey of 0.2159,
+/// read linear it would be 0.502 (a review, session 55: no test held
+/// either). (Controls: with either texture read the other way, this test
+/// failed.)
+#[test]
+fn metallic_roughness_textures_are_linear_and_emissive_ones_srgb() {
+    let mut v = read_json(&dir().join("BoxTextured.gltf"));
+    v["images"][0]["uri"] = json!(png_uri([0, 128, 255]));
+    v["materials"][0]["pbrMetallicRoughness"] =
+        json!({"metallicRoughnessTexture": {"index": 0}, "metallicFactor": 1.0, "roughnessFactor": 1.0});
+    let scene = parse(&v, "BoxTextured (roughness texel 128)").unwrap().builder.build();
+    let Bsdf::Conductor(c) = scene.materials[0].bsdf() else { panic!("not a conductor") };
+    let alpha = (128.0f32 / 255.0).powi(2);
+    assert!((c.distrib.alpha_x - alpha).abs() < 1e-4, "alpha {} (linear texel: {alpha})", c.distrib.alpha_x);
+
+    v["images"][0]["uri"] = json!(png_uri([128, 128, 128]));
+    v["materials"][0]["pbrMetallicRoughness"] = json!({"metallicFactor": 0.0});
+    v["materials"][0]["emissiveTexture"] = json!({"index": 0});
+    v["materials"][0]["emissiveFactor"] = json!([1.0, 1.0, 1.0]);
+    let scene = parse(&v, "BoxTextured (emissive texel 128)").unwrap().builder.build();
+    let Some(prism::light::Light::Area(light)) = scene.lights.first() else { panic!("no area light") };
+    let decoded = ((128.0f32 / 255.0 + 0.055) / 1.055).powf(2.4);
+    for c in emission_rgb(&light.le) {
+        assert!((c - decoded).abs() < 2e-3, "emitted {:?}, sRGB-decoded {decoded}", emission_rgb(&light.le));
+    }
+}
+
+/// A node's world transform is its parent's times its own (glTF 2.0,
+/// section 3.5.3): Box.gltf's parent node rotated 90 degrees about z and
+/// its mesh node moved by (1, 0, 0) put the unit box's centre at (0, 1, 0);
+/// the product taken the other way round would put it at (1, 0, 0), and
+/// with it this test failed. (A review, session 55: no test held a world
+/// position.)
+#[test]
+fn a_child_node_is_placed_in_its_parents_frame() {
+    let mut v = read_json(&dir().join("Box.gltf"));
+    v["nodes"][0] = json!({"children": [1], "rotation": [0.0, 0.0, std::f32::consts::FRAC_1_SQRT_2, std::f32::consts::FRAC_1_SQRT_2]});
+    v["nodes"][1] = json!({"mesh": 0, "translation": [1.0, 0.0, 0.0]});
+    let scene = parse(&v, "Box (parent and child)").unwrap().builder.build();
+    let (lo, hi) = scene.accel.bounds();
+    let centre = (lo + hi) * 0.5 + scene.render_shift;
+    assert!((centre - Vec3A::new(0.0, 1.0, 0.0)).length() < 1e-5, "the box's centre is at {centre}");
+}
+
+/// A perspective camera's aspectRatio sets the image's width (480 rows:
+/// 1.5 gives 720 columns) and, with yfov vertical, the horizontal field of
+/// view: the right edge's ray is atan(1.5 tan(yfov / 2)) off the axis.
+/// (Only 1.0 was tested: a review, session 55.)
+#[test]
+fn a_cameras_aspect_ratio_sets_the_width_and_horizontal_view() {
+    let mut v = read_json(&dir().join("Cameras.gltf"));
+    v["cameras"][0]["perspective"]["aspectRatio"] = json!(1.5);
+    let scene = parse(&v, "Cameras (aspect 1.5)").unwrap().builder.build();
+    let c = &scene.camera;
+    assert_eq!((c.width, c.height), (720, 480));
+    let right = c.generate_ray(Vec2::new(720.0, 240.0)).d;
+    let expected = (1.5 * 0.35f32.tan()).atan();
+    assert!((right.x.atan2(-right.z) - expected).abs() < 1e-4, "{right}: expected {expected} rad off the axis");
+    let top = c.generate_ray(Vec2::new(360.0, 0.0)).d;
+    assert!((top.y.atan2(-top.z) - 0.35).abs() < 1e-4, "{top}");
+}
+
 #[test]
 fn primitive_modes_points_and_lines_are_skipped_triangle_modes_render() {
     // Points and lines have no area, so a path tracer's image has none of
