@@ -183,7 +183,19 @@ mod tests {
     fn a_reference_that_dropped_samples_is_refused() {
         let json = include_str!("../tests/references/cornell-box.json");
         let mut meta: ReferenceMeta = serde_json::from_str(json).unwrap();
-        assert!(meta.colour_stats().is_ok());
+        // The statistics are the file's: its blocks' means and standard
+        // errors, the luminance's from its own column (a review, session
+        // 55: only that they were given was checked).
+        let stats = meta.colour_stats().unwrap();
+        assert_eq!(
+            (stats.rgb.blocks_x, stats.rgb.blocks_y, stats.rgb.k),
+            (meta.width / meta.block, meta.height / meta.block, meta.passes)
+        );
+        assert_eq!((&stats.rgb.mean, &stats.rgb.stderr), (&meta.block_mean, &meta.block_stderr));
+        let y_stderr: Vec<f64> = stats.y.stderr.iter().map(|s| s[0]).collect();
+        assert_eq!(y_stderr, meta.block_y_stderr);
+        let b = meta.block_mean.len() / 2;
+        assert_eq!(stats.y.mean[b][0], luminance(meta.block_mean[b]));
         meta.dropped_samples.nan = 1;
         let e = meta.colour_stats().unwrap_err().to_string();
         assert!(e.contains("dropped 1 samples (1 NaN"), "{e}");

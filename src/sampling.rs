@@ -339,6 +339,11 @@ mod tests {
         }
         assert_eq!(power_heuristic(0.0, 0.0), 0.0);
         assert_eq!(power_heuristic(f32::INFINITY, 1.0), 1.0);
+        // The values themselves (Veach 1997, eq. 9.13: a^2 / (a^2 + b^2)),
+        // which the balance heuristic's weights would not give while still
+        // summing to 1 (a review, session 55).
+        assert_eq!((power_heuristic(1.0, 3.0), power_heuristic(3.0, 1.0)), (0.1, 0.9));
+        assert_eq!(power_heuristic(2.0, 2.0), 0.5);
     }
 
     /// Pearson's chi-square p-value of `points` binned on a 32 x 32 grid

@@ -96,18 +96,21 @@ fn spectra_close(a: SampledSpectrum, b: SampledSpectrum, tol: f32) -> bool {
 /// sample() returns eval() and pdf() at its own direction (non-delta; the
 /// BSDFs compute them with the same arithmetic, so to 1e-5), zero
 /// eval/pdf and a probability pdf for delta lobes, flags within flags().
+/// Returns the worst pdf mismatch and how many of the `n` draws gave a
+/// sample (each of which was checked).
 fn check_sample_consistency(
     b: &dyn TestBsdf,
     flags: BsdfFlags,
     wo: Vec3A,
     mode: TransportMode,
     n: usize,
-) -> Result<f32, String> {
+) -> Result<(f32, usize), String> {
     let mut u = rng(17, wo.x.to_bits() as u64, wo.z.to_bits() as u64);
-    let mut worst = 0.0f32;
+    let (mut worst, mut checked) = (0.0f32, 0);
     for _ in 0..n {
         let (uc, u2) = (u.get1d(), u.get2d());
         let Some(s) = b.sample(wo, uc, u2, mode) else { continue };
+        checked += 1;
         check_sample_sane(&s, wo)?;
         if flags.0 & s.flags.0 != s.flags.0 {
             return Err(format!("sample flags {:?} not in {:?}", s.flags, flags));
@@ -125,7 +128,7 @@ fn check_sample_consistency(
             return Err(format!("wo {wo:?} wi {:?}: sample f {:?} pdf {} vs eval {f:?} pdf {pdf}", s.wi, s.f, s.pdf));
         }
     }
-    Ok(worst)
+    Ok((worst, checked))
 }
 
 fn check_sample_sane(s: &BsdfSample, wo: Vec3A) -> Result<(), String> {
@@ -149,16 +152,20 @@ fn sample_agrees_with_eval_and_pdf() {
     let mut all: Vec<(String, Bsdf)> = rough_set().into_iter().map(|r| (r.name, r.bsdf)).collect();
     all.extend(smooth_set());
     for (name, b) in &all {
-        let mut worst = 0.0f32;
+        let (mut worst, mut checked, mut drawn) = (0.0f32, 0, 0);
         for wo in wo_set(60, 3) {
             for mode in MODES {
                 match check_sample_consistency(b, b.flags(), wo, mode, 300) {
-                    Ok(w) => worst = worst.max(w),
+                    Ok((w, c)) => (worst, checked) = (worst.max(w), checked + c),
                     Err(e) => panic!("{name} {mode:?}: {e}"),
                 }
+                drawn += 300;
             }
         }
-        println!("{name:<40} worst relative pdf mismatch {worst:.2e}");
+        println!("{name:<40} worst relative pdf mismatch {worst:.2e}, {checked} of {drawn} draws sampled");
+        // A sampler that fails (returns no sample) would pass the checks
+        // above vacuously (a review, session 55).
+        assert!(checked > drawn / 3, "{name}: only {checked} of {drawn} draws gave a sample");
     }
 }
 
@@ -792,6 +799,7 @@ fn negative_control_smooth_dielectric() {
 fn rough_transmission_eta2_only_in_radiance_mode() {
     for eta in [1.5f32, 1.0 / 1.5] {
         let b = dielectric(eta, 0.3, 0.3);
+        let mut transmitted = 0;
         for (wo, wi) in sampled_pairs(&b, 2000) {
             let l = lambda();
             let fr = b.eval(wo, wi, &l, TransportMode::Radiance)[0];
@@ -801,8 +809,11 @@ fn rough_transmission_eta2_only_in_radiance_mode() {
             let s = b.sample(wo, 0.999, Vec2::splat(0.4), &l, TransportMode::Radiance);
             if let Some(s) = s.filter(|s| s.flags.is_transmission()) {
                 assert!((s.eta - if wo.z > 0.0 { eta } else { 1.0 / eta }).abs() < 1e-6);
+                transmitted += 1;
             }
         }
+        // (Counted, so that a sampler that never transmits cannot pass.)
+        assert!(transmitted > 500, "eta {eta}: {transmitted} transmissions sampled");
     }
 }
 

@@ -669,6 +669,13 @@ fn efficiency_net_of_the_reference_noise_is_reported() {
     cfg.max_spp = Some(4);
     let r = run(&cfg).unwrap();
     let floor = r.reference.noise_floor.expect("a rendered reference's noise is estimated");
+    // The floor's value: path's relMSE m = V/n + V/N against a reference of
+    // the same estimator, here n = 4 spp and N = 2 (its 2 spp over 2
+    // passes), so V/N = m / 1.5 (a review, session 55: only that a floor
+    // below relMSE was given was checked).
+    let path = &r.integrators[0];
+    assert_eq!((path.label.as_str(), path.spp, r.reference.spp), ("path", 4, Some(2)));
+    assert_eq!(floor, path.rel_mse / 1.5);
     for x in &r.integrators {
         let want = 1.0 / ((x.rel_mse - floor) * x.seconds);
         assert!(

@@ -881,17 +881,28 @@ mod tests {
     /// estimator rendered black.
     #[test]
     fn lights_near_the_top_of_f32_are_still_sampled() {
-        let camera = Camera::new(Vec3A::new(0.0, 0.0, -5.0), Vec3A::ZERO, Vec3A::Y, 40.0, 8, 8);
-        let mut b = SceneBuilder::new(camera);
-        b.point_light("lamp", Vec3A::Y, Spectrum::Constant(1.0));
-        b.point_light("star", Vec3A::X, Spectrum::Constant(4e36));
-        let scene = b.build();
-        assert!(scene.lights.iter().all(|l| l.power().is_finite()));
-        let picks: Vec<u32> = [1u64 << 60, 1 << 63, 15 << 60]
-            .iter()
-            .map(|&u| scene.sample_light(u).expect("no light sampling").0)
-            .collect();
-        assert_eq!(picks, [1, 1, 1], "the brighter light is chosen (its pmf is ~1)");
+        // In either order, so that a table that falls to its last entry
+        // cannot pass (a review, session 55), and with the pmfs: the
+        // lamp's is its share of the power, 1 / 4e36.
+        for star_first in [false, true] {
+            let camera = Camera::new(Vec3A::new(0.0, 0.0, -5.0), Vec3A::ZERO, Vec3A::Y, 40.0, 8, 8);
+            let mut b = SceneBuilder::new(camera);
+            let lights = [("lamp", Vec3A::Y, 1.0), ("star", Vec3A::X, 4e36)];
+            for (name, p, intensity) in if star_first { [lights[1], lights[0]] } else { lights } {
+                b.point_light(name, p, Spectrum::Constant(intensity));
+            }
+            let scene = b.build();
+            assert!(scene.lights.iter().all(|l| l.power().is_finite()));
+            let (star, lamp) = if star_first { (0, 1) } else { (1, 0) };
+            // (Bits whose alias coin is not exactly 0: a coin of 0 takes
+            // even a bin of threshold 2.5e-37, a probability of 2^-64.)
+            for u in [(1u64 << 60) | 0x5555, 0x9000_0000_0000_1234, (15 << 60) | 0x777] {
+                let (i, pmf) = scene.sample_light(u).expect("no light sampling");
+                assert_eq!((i, pmf), (star, 1.0), "star first: {star_first}: the brighter light is chosen");
+            }
+            let lamp_pmf = scene.light_pmf(lamp);
+            assert!((lamp_pmf / 2.5e-37 - 1.0).abs() < 1e-3, "star first: {star_first}: the lamp's pmf {lamp_pmf}");
+        }
     }
 
     /// A scene whose brightest emitter is below 2^-36 is warned of, one at

@@ -236,8 +236,12 @@ mod tests {
         0.003_939_804 / (c * c)
     }
 
+    /// The oracle's own check: pbrt's density, against which
+    /// `tabulated_pdf_follows_pbrt` holds the table, integrates to one
+    /// (its constant is right); the table's own densities are checked in
+    /// `lanes_carry_their_segments_density`.
     #[test]
-    fn visible_pdf_integrates_to_one() {
+    fn pbrts_visible_pdf_integrates_to_one() {
         let n = 470_000;
         let h = 470.0 / n as f64;
         let s: f64 =
@@ -290,8 +294,6 @@ mod tests {
 
     #[test]
     fn inverse_cdf_covers_the_range() {
-        assert!((sample_visible_wavelength(0.0) - 360.0).abs() < 0.5);
-        assert!((sample_visible_wavelength(1.0) - 830.0).abs() < 0.5);
         // The vector sampler: u = 0 gives 360 nm in lane 0, u just below
         // 1 gives 830 nm in lane 0 and lane 3 (u' = u + 3/4 - 1).
         let l = SampledWavelengths::sample_visible(0.0);

@@ -333,7 +333,8 @@ mod tests {
             listed.sort_unstable();
             let all: Vec<u32> = (0..boxes.len() as u32).collect();
             assert_eq!((seen, listed), (all.clone(), all));
-            assert_eq!(bvh.total_aabb.min, boxes.iter().fold(Aabb::empty(), |a, b| a.union(b)).min);
+            let total = boxes.iter().fold(Aabb::empty(), |a, b| a.union(b));
+            assert_eq!((bvh.total_aabb.min, bvh.total_aabb.max), (total.min, total.max));
         }
     }
 
