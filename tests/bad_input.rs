@@ -933,8 +933,9 @@ fn a_byte_order_mark_is_skipped() {
 }
 
 /// The control of `spectrum-cycle`: a chain of names that ends is no cycle,
-/// however long (one of more than 9 names was "refers to itself"), and
-/// resolves ...
+/// however long (one of more than 9 names was "refers to itself"), and it
+/// resolves to the value at its end (a review, session 55: only that it
+/// parsed was checked).
 #[test]
 fn a_long_chain_of_spectrum_names_resolves() {
     let links: Vec<String> = (0..20).map(|i| format!("\"s{i}\": \"s{}\"", i + 1)).collect();
@@ -943,8 +944,6 @@ fn a_long_chain_of_spectrum_names_resolves() {
         .replace("\"materials\"", &spectra)
         .replace("\"reflectance\": 0.5", "\"reflectance\": \"s0\"");
     let scene = prism::scene::parse_scene(&text, "s.json", Path::new(".")).unwrap_or_else(|e| panic!("{e}")).build();
-    // ... to the value at its end (a review, session 55: only that it
-    // parsed was checked).
     let prism::materials::Bsdf::Diffuse(d) = scene.materials[0].bsdf() else { panic!("not diffuse") };
     for l in [400.0, 550.0, 700.0] {
         assert_eq!(d.reflectance.eval(l), 0.25, "{l} nm");

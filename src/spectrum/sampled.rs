@@ -294,6 +294,10 @@ mod tests {
 
     #[test]
     fn inverse_cdf_covers_the_range() {
+        // The oracle's range (pbrt's inverse CDF, which
+        // `tabulated_pdf_follows_pbrt` holds the table to).
+        assert!((sample_visible_wavelength(0.0) - 360.0).abs() < 0.5);
+        assert!((sample_visible_wavelength(1.0) - 830.0).abs() < 0.5);
         // The vector sampler: u = 0 gives 360 nm in lane 0, u just below
         // 1 gives 830 nm in lane 0 and lane 3 (u' = u + 3/4 - 1).
         let l = SampledWavelengths::sample_visible(0.0);
