@@ -155,13 +155,15 @@ fn narrow_view() -> Scene {
 /// the splats piled onto it: rows and columns of this uniform view read
 /// 1.7 % low under `light` and 0.7 % under `bdpt` (an audit, session 42).
 /// Each pixel must read 1; the control, light tracing that projects
-/// the f32 direction, must not (at the family of the two comparisons).
+/// the f32 direction, must not (at the family of the two comparisons): at
+/// 4096 paths per pixel its chi-square was 387-401 over the 192 pixels at
+/// seed offsets 0 and 92-94 (p 3e-15 to 7e-17; session 56, 568 at 8192).
 #[test]
 fn a_narrow_view_is_uniform_too() {
     let s = narrow_view();
     let expected = srgb_of(&Spectrum::Constant(1.0));
     let block =
-        |integ: &dyn Integrator| ColourStats::from_passes(&render_passes(&s, integ, 8192, K, seed(5), 0), 16, 12, 1);
+        |integ: &dyn Integrator| ColourStats::from_passes(&render_passes(&s, integ, 4096, K, seed(5), 0), 16, 12, 1);
     let names = ["light", "bdpt"];
     let versus_value = |a: &ColourStats| Verdict::versus_value(a, expected, names.len());
     for name in names {
