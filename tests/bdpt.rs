@@ -861,8 +861,9 @@ fn mis_weights_of_all_strategies_sum_to_one() {
 /// chi-square 41-66 over 4 blocks at seed offsets 0 and 92-100, against
 /// ~23; 51 at offset 0 before; session 56). The two images of a
 /// comparison come from the same subpaths, so they are correlated: the
-/// test is paired, each pass's difference image against 0 (a review, session 54: as two independent estimates
-/// the z's error was sqrt(s_a^2 + s_b^2), not that of the difference).
+/// test is paired, each pass's difference image against 0 (a review,
+/// session 54: as two independent estimates the z's error was
+/// sqrt(s_a^2 + s_b^2), not that of the difference).
 #[test]
 fn unweighted_strategies_agree_length_by_length() {
     const BLOCK: u32 = 16;
