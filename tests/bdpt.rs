@@ -859,7 +859,7 @@ fn mis_weights_of_all_strategies_sum_to_one() {
 /// of 256 spp at 32 x 32 in blocks of 16 then reject each comparison's
 /// x1.05 as 1024 did with the measured light ((0, 5)'s, the weakest, at
 /// chi-square 41-66 over 4 blocks at seed offsets 0 and 92-100, against
-/// ~23; 51 at offset 0 before; session 56). The two images of a
+/// ~23; 51.5 at offset 0 before; session 56). The two images of a
 /// comparison come from the same subpaths, so they are correlated: the
 /// test is paired, each pass's difference image against 0 (a review,
 /// session 54: as two independent estimates the z's error was
