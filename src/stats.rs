@@ -224,7 +224,11 @@ impl std::fmt::Display for Comparison {
         write!(
             f,
             "{}: worst |z| = {:.3} at block ({}, {}) channel {} (threshold {:.3}); chi-square {:.1} over {} (p = {:.2e})",
-            if self.passed { "agree" } else { "DISAGREE" },
+            match (self.passed, self.n) {
+                (true, _) => "agree",
+                (false, 0) => "NOTHING COMPARED",
+                (false, _) => "DISAGREE",
+            },
             self.worst_z,
             self.worst_at.0,
             self.worst_at.1,
@@ -304,7 +308,10 @@ fn compare_with(
         _ if chi2.is_finite() => ChiSquared::new(n as f64).expect("chi-square").sf(chi2),
         _ => 0.0,
     };
-    let passed = worst.0 <= threshold && chi2_p >= chi2_alpha;
+    // Nothing random compared (every block exact and equal on both sides:
+    // two black images) is no evidence of agreement, so it does not pass:
+    // two estimators that both lost all their light must not agree by it.
+    let passed = n > 0 && worst.0 <= threshold && chi2_p >= chi2_alpha;
     Comparison { n, worst_z: worst.0, worst_at: worst.1, threshold, chi2, chi2_p, passed }
 }
 
@@ -387,6 +394,28 @@ mod tests {
         assert!(!compare(&a, &biased).passed);
         assert!(compare_to_value(&a, [1.0; 3]).passed);
         assert!(!compare_to_value(&a, [1.2; 3]).passed);
+    }
+
+    /// Two estimates with nothing random in them (every pass exactly black
+    /// on both sides: no degree of freedom) are no evidence of agreement,
+    /// so their verdict fails (it passed, with n = 0, until session 57);
+    /// one block with noise on one side is enough to compare.
+    #[test]
+    fn nothing_random_compared_does_not_pass() {
+        let black = vec![vec![[0.0f32; 3]; 64]; 8];
+        let a = ColourStats::from_passes(&black, 8, 8, 4);
+        let v = Verdict::versus(&a, &a, 1);
+        assert_eq!((v.rgb.n, v.y.n), (0, 0));
+        assert!(!v.passed(), "{v}");
+        assert!(!Verdict::versus_value(&a, [0.0; 3], 1).passed());
+        let mut one_noisy = black.clone();
+        for (pass, noise) in one_noisy.iter_mut().zip(noisy_passes(0.0, 8, 4)) {
+            pass[0] = noise[0];
+        }
+        let b = ColourStats::from_passes(&one_noisy, 8, 8, 4);
+        let v = Verdict::versus(&a, &b, 1);
+        assert_eq!((v.rgb.n, v.y.n), (3, 1));
+        assert!(v.passed(), "{v}");
     }
 
     /// Between estimates of K_a and K_b passes the t distribution has the
@@ -516,8 +545,11 @@ pub struct Verdict {
 }
 
 impl Verdict {
+    /// The colours' worst z within its threshold (their chi-square is not
+    /// asked: the channels are correlated) and luminance's comparison
+    /// passed, each having compared something random.
     pub fn passed(&self) -> bool {
-        self.rgb.worst_z <= self.rgb.threshold && self.y.passed
+        self.rgb.n > 0 && self.rgb.worst_z <= self.rgb.threshold && self.y.passed
     }
 
     /// Two estimates, as one of `family` comparisons made together.
