@@ -35,7 +35,7 @@
 //! | alpha_x   | float                   | -       | anisotropic GGX alpha along x (with alpha_y)             |
 //! | alpha_y   | float                   | -       | anisotropic GGX alpha along y (with alpha_x)             |
 
-use super::fresnel::{fr_dielectric, fr_dielectric_refracted, reflect, reflect_z, refract};
+use super::fresnel::{fr_dielectric, fr_dielectric_reflected, fr_dielectric_refracted, reflect, reflect_z, refract};
 use super::microfacet::{refraction_jacobian, TrowbridgeReitz};
 use super::{BsdfFlags, BsdfSample, TransportMode};
 use crate::spectrum::{SampledSpectrum, SampledWavelengths, Spectrum};
@@ -61,16 +61,17 @@ struct HalfVector {
 }
 
 impl HalfVector {
-    /// R(wo.wm): for a refraction from wi's own cosine to the microfacet
-    /// (`fr_dielectric_refracted`: exact near the critical angle, where
-    /// Snell's law in f32 is not), for a reflection by Snell's law. eval and
-    /// pdf, and the f and pdf that sample returns, take it from here, so they
-    /// agree exactly; sample's choice of lobe, made before wi exists, uses
-    /// Snell's law at the sampled normal.
+    /// R(wo.wm) from the pair, exact near the critical angle, where Snell's
+    /// law from an f32 cosine is not: for a refraction from wi's own cosine
+    /// to the microfacet (`fr_dielectric_refracted`), for a reflection from
+    /// the half vector in f64 (`fr_dielectric_reflected`). eval and pdf, and
+    /// the f and pdf that sample returns, take it from here, so they agree
+    /// exactly; sample's choice of lobe, made before wi exists, uses Snell's
+    /// law at the sampled normal.
     #[inline]
     fn fresnel(&self, wo: Vec3A, wi: Vec3A, eta: f32) -> f32 {
         if self.reflect {
-            fr_dielectric(wo.dot(self.wm), eta)
+            fr_dielectric_reflected(wo, wi, eta)
         } else {
             fr_dielectric_refracted(wo.dot(self.wm), wi.dot(self.wm), eta)
         }
