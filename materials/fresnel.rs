@@ -63,8 +63,8 @@ pub fn fr_dielectric_refracted(cos_theta_i: f32, cos_t: f32, eta: f32) -> f32 {
 /// above it R leaves 1 like the square root of the cosines' difference, so
 /// there the ~1e-7 that an f32 half vector and dot product add to cos_i is
 /// magnified: 2.3e-8 above the critical cosine, T = 1 - R read 3.5e-3 for
-/// 1.6e-3 and f 0.18 % low (a seed sweep, session 59), as
-/// `fr_dielectric_refracted` keeps the refractions exact.
+/// 1.6e-3 and f 0.18 % low (a seed sweep, session 59). This keeps the
+/// reflections exact as `fr_dielectric_refracted` keeps the refractions.
 #[inline]
 pub fn fr_dielectric_reflected(wo: Vec3A, wi: Vec3A, eta: f32) -> f32 {
     if eta == 1.0 {
