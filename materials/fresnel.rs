@@ -7,7 +7,8 @@
 //! - `fr_dielectric`: exact unpolarised reflectance between two dielectrics
 //!   (Born & Wolf, "Principles of Optics", §1.5.2; pbrt-v4 §9.3.5 `FrDielectric`);
 //!   `fr_dielectric_refracted` the same for a refraction whose transmitted
-//!   cosine is known, which is exact near the critical angle.
+//!   cosine is known, and `fr_dielectric_reflected` for a reflection whose
+//!   pair of directions is known, each exact near the critical angle.
 //! - `fr_conductor`: exact unpolarised reflectance of a conductor with complex
 //!   index eta + i k, evaluated per wavelength on four lanes at once. It uses the
 //!   real-arithmetic form of the complex Fresnel equations (Born & Wolf §14.2;
@@ -178,27 +179,27 @@ pub fn refract(wi: Vec3A, n: Vec3A, eta: f32) -> Option<(Vec3A, f32)> {
     Some((-wi / etap + (cos_i / etap - cos_t) * n, etap))
 }
 
-/// cos^2 of the transmitted angle for light arriving with cosine `cos_i`
-/// (not negative) at an interface of index `eta` (inside over outside),
-/// from `inside` or outside: 1 - (1 - cos_i^2) / eta'^2 with eta' = eta
-/// from outside and 1 / eta from inside, written as
-/// (cos_i^2 + (eta - 1)(eta + 1)) / eta^2 and
-/// eta^2 cos_i^2 - (eta - 1)(eta + 1):
+/// cos^2 of the transmitted angle for light arriving with cos_i^2 = `c2`
+/// at an interface of index `eta` (inside over outside), from `inside` or
+/// outside: 1 - (1 - cos_i^2) / eta'^2 with eta' = eta from outside and
+/// 1 / eta from inside, written as (cos_i^2 + (eta - 1)(eta + 1)) / eta^2
+/// and eta^2 cos_i^2 - (eta - 1)(eta + 1). Not positive under total
+/// internal reflection.
 ///
-/// - at grazing incidence 1 - cos_i^2 rounds to 1 in f32 and loses cos_i
+/// In f64, from cos_i^2, which a caller may know better than the square of
+/// an f32 cosine (`fr_dielectric_reflected`; session 59). The forms date
+/// from f32, where each one mattered:
+///
+/// - at grazing incidence 1 - cos_i^2 rounds to 1 in f32 and lost cos_i
 ///   (wo.z = 1.5e-4 through an index-matched interface left at -2.4e-4);
 ///   these forms keep it, exactly so where eta = 1;
 /// - near the critical angle their two terms nearly cancel, so each must be
-///   good to its own relative precision: eta^2 - 1 rounded as a whole, or
-///   1 / eta rounded before squaring, is off by ~6e-8 absolute, which at
-///   eta 1.0001 and 1.4e-4 in cosine from the critical angle (cos_t^2 =
-///   5e-7) read R 0.831 for 0.826 (a seed sweep, session 45), where
-///   (eta - 1)(eta + 1) is off by ~1e-11 (eta - 1 is exact).
-///
-/// Not positive under total internal reflection.
-///
-/// In f64, from cos_i^2 (`c2`), which a caller may know better than the
-/// square of an f32 cosine (`fr_dielectric_reflected`).
+///   good to its own relative precision: in f32, eta^2 - 1 rounded as a
+///   whole, or 1 / eta rounded before squaring, was off by ~6e-8 absolute,
+///   which at eta 1.0001 and 1.4e-4 in cosine from the critical angle
+///   (cos_t^2 = 5e-7) read R 0.831 for 0.826 (a seed sweep, session 45).
+///   (eta - 1)(eta + 1) was off by ~1e-11 in f32 (eta - 1 is exact), and
+///   is exact in f64 for an f32 eta.
 #[inline]
 fn cos2_transmitted(c2: f64, eta: f32, inside: bool) -> f64 {
     let eta = eta as f64;
@@ -295,7 +296,8 @@ mod tests {
                     let (wt, _) = got.unwrap_or_else(|| panic!("eta {eta}, cos {cos}, side {side}: no refraction"));
                     let err = (0..3).map(|i| (wt[i] as f64 - want[i]).abs()).fold(0.0, f64::max);
                     // Near the critical angle cos_t is ill-conditioned: an
-                    // f32 rounding of cos_t^2 moves it by ~3e-8 / cos_t.
+                    // error of ~6e-8 in cos_t^2 (the f32 cosine's square's
+                    // rounding) moves it by ~3e-8 / cos_t.
                     let tol = 1e-6 + 1e-7 / cos_t;
                     assert!(err < tol, "eta {eta}, cos {cos}, side {side}: {wt:?} against {want:?}");
                     if eta == 1.0 {
