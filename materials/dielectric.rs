@@ -38,6 +38,7 @@
 use super::fresnel::{fr_dielectric, fr_dielectric_reflected, fr_dielectric_refracted, reflect, reflect_z, refract};
 use super::microfacet::{refraction_jacobian, TrowbridgeReitz};
 use super::{BsdfFlags, BsdfSample, TransportMode};
+use crate::sampling::on_u_grid;
 use crate::spectrum::{SampledSpectrum, SampledWavelengths, Spectrum};
 use glam::{Vec2, Vec3A};
 
@@ -215,18 +216,20 @@ impl Dielectric {
     }
 
     /// Delta reflection with probability R, delta refraction with T = 1 - R
-    /// (pbrt-v4 §9.5): each sample's weight f |cos| / pdf is 1, times
-    /// 1/eta'^2 for radiance-mode transmission (§9.5.2).
+    /// (pbrt-v4 §9.5), R on the sampler's grid (`on_u_grid`): each sample's
+    /// weight f |cos| / pdf is 1 (R / p and T / (1 - p) where R is within
+    /// 2^-25 of 0 or 1), times 1/eta'^2 for radiance-mode transmission
+    /// (§9.5.2).
     fn sample_smooth(&self, wo: Vec3A, uc: f32, eta: f32, mode: TransportMode) -> Option<BsdfSample> {
         let r = fr_dielectric(wo.z, eta);
-        if uc < r {
+        let p = on_u_grid(r);
+        if uc < p {
             let wi = reflect_z(wo);
-            return BsdfSample::specular(wi, self.spectral(r), r, BsdfFlags::SPECULAR_REFLECTION, 1.0);
+            return BsdfSample::specular(wi, self.spectral(r), p, BsdfFlags::SPECULAR_REFLECTION, 1.0);
         }
         let (wi, etap) = refract(wo, Vec3A::Z, eta)?;
-        let t = 1.0 - r;
-        let scale = t * radiance_scale(mode, etap);
-        BsdfSample::specular(wi, self.spectral(scale), t, BsdfFlags::SPECULAR_TRANSMISSION, etap)
+        let scale = (1.0 - r) * radiance_scale(mode, etap);
+        BsdfSample::specular(wi, self.spectral(scale), 1.0 - p, BsdfFlags::SPECULAR_TRANSMISSION, etap)
     }
 
     /// Visible normal, then reflection (probability R(wo.wm)) or refraction.
@@ -236,7 +239,7 @@ impl Dielectric {
         }
         let wm = self.distrib.sample_wm(wo, u2);
         let r = fr_dielectric(wo.dot(wm), eta);
-        let (wi, flags) = if uc < r {
+        let (wi, flags) = if uc < on_u_grid(r) {
             (reflect(wo, wm), BsdfFlags::GLOSSY_REFLECTION)
         } else {
             (refract(wo, wm, eta)?.0, BsdfFlags::GLOSSY_TRANSMISSION)
@@ -270,13 +273,15 @@ impl Dielectric {
         }
     }
 
-    /// Visible-normal density times the Jacobian, times the lobe probability.
+    /// Visible-normal density times the Jacobian, times the lobe probability
+    /// (R on the sampler's grid, as `sample_rough` chooses by it).
     fn pdf_rough(&self, wo: Vec3A, wi: Vec3A, h: HalfVector, r: f32) -> f32 {
         let d = &self.distrib;
+        let p = on_u_grid(r);
         if h.reflect {
-            d.pdf_reflected(wo, h.wm) * r
+            d.pdf_reflected(wo, h.wm) * p
         } else {
-            d.pdf_refracted(wo, wi, h.wm, h.etap) * (1.0 - r)
+            d.pdf_refracted(wo, wi, h.wm, h.etap) * (1.0 - p)
         }
     }
 }
