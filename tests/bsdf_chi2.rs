@@ -148,11 +148,12 @@ fn run(case: &Case) -> Chi2Outcome {
 fn report(name: &str, o: &Chi2Outcome, secs: f64, alpha: f64) -> bool {
     let rejected = o.rejected(alpha);
     println!(
-        "{:<58} p={:<10.4e} chi2={:<9.1} dof={:<6} sampled={:.4} pdf_int={:.4} {:.2}s {}",
+        "{:<58} p={:<10.4e} chi2={:<9.1} dof={:<6} p_total={:<10.4e} sampled={:.4} pdf_int={:.4} {:.2}s {}",
         name,
         o.p_value,
         o.chi2,
         o.dof,
+        o.p_total,
         o.sampled as f64 / N_SAMPLES as f64,
         o.pdf_integral,
         secs,
