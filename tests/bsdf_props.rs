@@ -1222,7 +1222,7 @@ fn rough_refraction_is_exact_at_the_critical_angle() {
 #[test]
 fn rough_dielectric_chooses_its_lobes_with_their_chance() {
     let g = Ggx { ax: 0.5, ay: 0.5, separable: false };
-    let mut worst = 0f64;
+    let (mut worst, mut checked) = (0f64, 0);
     for eta in [1.001f32, 1.0 / 1.001] {
         let b = dielectric(eta, 0.5, 0.5);
         let side = |w: Vec3A| side_index(w, eta) as f64;
@@ -1241,10 +1241,13 @@ fn rough_dielectric_chooses_its_lobes_with_their_chance() {
                 let r = fresnel_dielectric64(dot3(o, h), side(wo), side(-wo));
                 let want = (1.0 + g.lambda(o)) / (1.0 + g.lambda(o) + g.lambda(i)) * r;
                 worst = worst.max((got / want - 1.0).abs());
+                checked += 1;
             }
         }
     }
-    eprintln!("worst relative error of the reflections' expected weight: {worst:.2e}");
+    eprintln!("worst relative error of the reflections' expected weight over {checked} normals: {worst:.2e}");
+    // (294 of 360: a reflection may leave below the surface.)
+    assert!(checked >= 250, "only {checked} reflections checked");
     assert!(worst < 1e-3, "{worst}");
 }
 
