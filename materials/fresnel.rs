@@ -71,8 +71,7 @@ pub fn fr_dielectric_reflected(wo: Vec3A, wi: Vec3A, eta: f32) -> f32 {
     if eta == 1.0 {
         return 0.0;
     }
-    let unit = |w: Vec3A| w.as_dvec3() / w.as_dvec3().length();
-    let (o, i) = (unit(wo), unit(wi));
+    let (o, i) = (wo.as_dvec3().normalize(), wi.as_dvec3().normalize());
     let h = o + i;
     let c2 = (o.dot(h).powi(2) / h.length_squared()).min(1.0);
     let inside = wo.z < 0.0;
