@@ -167,12 +167,24 @@ impl Camera {
     }
 
     /// Raster position of a vector leaving the pinhole (any length), if
-    /// inside the image, decided in f64 (`project_f64`).
+    /// inside the image, decided in f64 (`project_f64`). Rounded down to
+    /// f32, so that the pixel that holds it (`render::splat_pixel`, a floor)
+    /// is the f64 position's: rounded to nearest, x within half an f32 ulp
+    /// below p + 1 became p + 1, and column 8192 of a 16384-wide image
+    /// covered [8192 - 2.4e-4, 8193 - 2.4e-4) (an audit, session 60).
     #[inline]
     pub fn raster_of_direction(&self, v: DVec3) -> Option<Vec2> {
         let r = self.project_f64(v)?;
         let inside = (0.0..self.width as f64).contains(&r.x) && (0.0..self.height as f64).contains(&r.y);
-        inside.then(|| r.as_vec2())
+        let down = |x: f64| {
+            let f = x as f32;
+            if f as f64 > x {
+                f.next_down()
+            } else {
+                f
+            }
+        };
+        inside.then(|| Vec2::new(down(r.x), down(r.y)))
     }
 
     /// The directional density (solid angle) of the pinhole choosing `d`:
@@ -221,6 +233,32 @@ mod tests {
 
     fn cam() -> Camera {
         Camera::new(Vec3A::ZERO, Vec3A::Z, Vec3A::Y, 60.0, 64, 48)
+    }
+
+    /// A direction whose f64 raster position is just below a pixel's far
+    /// edge lands in that pixel: x = 8193 - d in a 16384-wide image (where
+    /// an f32 ulp is 2^-10) and y = 5 - d, for d from 1e-6 to 0.1 pixel.
+    /// Rounded to nearest, every d below 4.9e-4 (half an ulp at x) landed in
+    /// column 8193.
+    #[test]
+    fn a_raster_position_keeps_its_pixel() {
+        let c = Camera::new(Vec3A::ZERO, Vec3A::Z, Vec3A::Y, 60.0, 16384, 8);
+        let (scale, centre) = (c.raster_scale.as_dvec2(), DVec2::new(8192.0, 4.0));
+        let direction = |xy: DVec2| c.forward.as_dvec3() + c.right.as_dvec3() * xy.x + c.up.as_dvec3() * xy.y;
+        for d in [1e-6, 1e-5, 1e-4, 4e-4, 4.8e-4, 1e-3, 0.1] {
+            let want = DVec2::new(8193.0 - d, 5.0 - d);
+            // The f32 frame is orthonormal only to ~1e-8, 1e-4 pixel here:
+            // Newton steps put the f64 projection on `want`.
+            let mut xy = (want - centre) / scale;
+            for _ in 0..4 {
+                xy += (want - c.project_f64(direction(xy)).unwrap()) / scale;
+            }
+            let r64 = c.project_f64(direction(xy)).unwrap();
+            assert!((r64 - want).abs().max_element() < 1e-9, "{r64} for {want}");
+            let r = c.raster_of_direction(direction(xy)).unwrap();
+            let pixel = crate::render::splat_pixel(r, glam::UVec2::new(16384, 8));
+            assert_eq!(pixel, 4 * 16384 + 8192, "d {d}: raster {r} for {want}");
+        }
     }
 
     /// A camera 2e19 from what it looks at (the squared distance passes

@@ -32,9 +32,10 @@ use std::sync::OnceLock;
 
 const K: u32 = 16;
 
-/// Against an exact colour: sRGB and luminance of `spectrum`.
-fn versus_spectrum(a: &ColourStats, spectrum: &Spectrum) -> Verdict {
-    Verdict::versus_value(a, srgb_of(spectrum), 1)
+/// Against an exact colour: sRGB and luminance of `spectrum`, as one of
+/// `family` comparisons that must all pass.
+fn versus_spectrum(a: &ColourStats, spectrum: &Spectrum, family: usize) -> Verdict {
+    Verdict::versus_value(a, srgb_of(spectrum), family)
 }
 
 /// A closed box seen from inside, every face emitting `le` (one-sided,
@@ -67,13 +68,15 @@ fn white_rooms_read_le_over_one_minus_rho() {
     let rho = Spectrum::piecewise_linear(&[(400.0, 0.7), (550.0, 0.5), (700.0, 0.3)]);
     let expected = Spectrum::from_fn(|l| le.eval(l) / (1.0 - rho.eval(l)));
     let bd = bdpt(MisHeuristic::Power);
-    for mirrors in [&[][..], &[1, 3, 4]] {
+    // Two rooms, both of which must pass: a family of two comparisons.
+    let rooms = [&[][..], &[1, 3, 4]];
+    for mirrors in rooms {
         let run =
             |rho: &Spectrum| stats(&render_passes(&white_room(&le, rho, mirrors), bd.as_ref(), 16, K, seed(5), 0), 8);
-        let v = versus_spectrum(&run(&rho), &expected);
+        let v = versus_spectrum(&run(&rho), &expected, rooms.len());
         eprintln!("white room (mirror faces {mirrors:?}), expected sRGB {:?}: {v}", srgb_of(&expected));
         assert!(v.passed(), "{v}");
-        let v = versus_spectrum(&run(&rho.scale(0.98)), &expected);
+        let v = versus_spectrum(&run(&rho.scale(0.98)), &expected, rooms.len());
         eprintln!("negative control (rho x 0.98): {v}");
         assert!(!v.passed(), "rho x 0.98 went undetected: {v}");
     }
@@ -165,6 +168,8 @@ fn uniform_and_balance_mis_are_unbiased() {
         .map(|i| [0, 1, 2].map(|c| path_passes.iter().map(|p| p[i][c]).sum::<f32>() / path_passes.len() as f32))
         .collect();
     let mut mse = Vec::new();
+    // Uniform and balance are each compared with path: a family of two.
+    let versus = |a: &ColourStats, b: &ColourStats| Verdict::versus(a, b, 2);
     for mis in [MisHeuristic::Uniform, MisHeuristic::Balance, MisHeuristic::Power] {
         // The uniform weights are 22x noisier than the balance heuristic's:
         // at 32 spp its x1.02 control passed at one seed offset in three.

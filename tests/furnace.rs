@@ -282,6 +282,8 @@ fn albedo_per_block(scene: &Scene, rough: &Rough) -> Vec<[f64; 3]> {
 fn a_lossy_mirror_over_the_floor_is_rejected() {
     let blocks = ((RES / BLOCK) * (RES / BLOCK)) as usize;
     let lossy = Bsdf::Mirror(Mirror::new(Spectrum::Constant(0.9)));
+    // The mirror fills some blocks, which read ~0.9 (a 10 % loss).
+    const DARKER: f64 = 0.99;
     let mut passed = Vec::new();
     for i in INTEGRATORS {
         let integ = integrators::create(i.name, &IntegratorOptions::default()).unwrap();
@@ -291,9 +293,12 @@ fn a_lossy_mirror_over_the_floor_is_rejected() {
         let passes = render_passes(&scene, integ.as_ref(), spp, K, seed(), 0);
         let stats = ColourStats::from_passes(&passes, RES, RES, BLOCK);
         let v = Verdict::versus_values(&stats, &vec![grey(1.0); blocks], INTEGRATORS.len());
-        eprintln!("lossy mirror over a white floor, {}: {v}", i.name);
-        if v.passed() {
-            passed.push(format!("{}: {v}", i.name));
+        // The loss must show as light lost: the darkest block, where the
+        // mirror is seen, reads under the environment's 1.
+        let darkest = stats.y.mean.iter().map(|m| m[0]).fold(f64::INFINITY, f64::min);
+        eprintln!("lossy mirror over a white floor, {}: {v}; darkest block {darkest:.4}", i.name);
+        if v.passed() || darkest >= DARKER {
+            passed.push(format!("{}: {v}; darkest block {darkest:.4}", i.name));
         }
     }
     assert!(passed.is_empty(), "a 10 % loss off the mirror went undetected:\n{}", passed.join("\n"));

@@ -323,9 +323,13 @@ fn mutation() -> impl Strategy<Value = Mutation> {
 }
 
 /// Cases for the random test; PRISM_FUZZ_CASES overrides (e.g. 100000 for a
-/// long local run).
+/// long local run). A value that is not a positive whole number is an
+/// error: falling back to the default, or running no case, would let a
+/// long run pass untested.
 fn cases() -> u32 {
-    std::env::var("PRISM_FUZZ_CASES").ok().and_then(|s| s.parse().ok()).unwrap_or(3000)
+    let n = scenes::seeds::from_env("PRISM_FUZZ_CASES", 3000);
+    assert!(n > 0 && n <= u32::MAX as u64, "PRISM_FUZZ_CASES={n}: not a positive number of cases");
+    n as u32
 }
 
 #[test]

@@ -12,7 +12,7 @@ use glam::Vec3;
 use prism::spectrum::*;
 use rand_xoshiro::rand_core::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
-use statrs::distribution::{ChiSquared, ContinuousCDF, StudentsT};
+use statrs::distribution::{ContinuousCDF, StudentsT};
 
 fn d65() -> Spectrum {
     illuminant("D65").unwrap()
@@ -33,8 +33,11 @@ fn max_abs_diff(a: [f32; 3], b: [f32; 3]) -> f32 {
     (0..3).map(|i| (a[i] - b[i]).abs()).fold(0.0, f32::max)
 }
 
+/// The test's own seed, moved by PRISM_TEST_SEED: each test keeps a seed
+/// of its own under a sweep (taking the variable's value itself gave every
+/// test, and each test's control, one stream).
 fn seed(default: u64) -> u64 {
-    seeds::from_env("PRISM_TEST_SEED", default)
+    default.wrapping_add(seeds::from_env("PRISM_TEST_SEED", 0))
 }
 
 /// Uniform in [0, 1) from the top 24 bits.
@@ -227,17 +230,18 @@ fn regenerate_rgb_table() {
 
 // -------------------------------------------------- hero-wavelength sampling
 
-/// Result of the z-test of VALIDATION.md section 1 on estimates of XYZ.
+/// Result of the z-test of VALIDATION.md section 1 on estimates of XYZ:
+/// the worst |z| against the Student-t threshold. (No chi-square of the
+/// z's: X, Y and Z are estimated from the same samples, so their z's are
+/// correlated and their squares do not sum to a chi-square.)
 struct ZTest {
     max_abs_z: f64,
     threshold: f64,
-    sum_z2: f64,
-    chi2_limit: f64,
 }
 
 impl ZTest {
     fn passes(&self) -> bool {
-        self.max_abs_z < self.threshold && self.sum_z2 < self.chi2_limit
+        self.max_abs_z < self.threshold
     }
 }
 
@@ -272,15 +276,7 @@ fn z_test(spectra: &[Spectrum], seed: u64, estimate: impl Fn(&Spectrum, f32) -> 
     let n = zs.len() as f64;
     eprintln!("z = {:.2?}", zs);
     let t = StudentsT::new(0.0, 1.0, (BATCHES - 1) as f64).unwrap();
-    ZTest {
-        max_abs_z: zs.iter().fold(0.0f64, |a, z| a.max(z.abs())),
-        threshold: t.inverse_cdf(1.0 - 0.001 / n / 2.0),
-        sum_z2: zs.iter().map(|z| z * z).sum(),
-        // z is t-distributed, not normal: compare the chi-square at a
-        // stricter level so that the heavier tails do not fail a correct
-        // estimator.
-        chi2_limit: ChiSquared::new(n).unwrap().inverse_cdf(1.0 - 1e-6) * 1.5,
-    }
+    ZTest { max_abs_z: zs.iter().fold(0.0f64, |a, z| a.max(z.abs())), threshold: t.inverse_cdf(1.0 - 0.001 / n / 2.0) }
 }
 
 /// A smooth spectrum (blackbody) and a spiky one (F11) of unit luminance.
@@ -296,7 +292,7 @@ fn hero_estimate(s: &Spectrum, u: f32) -> Vec3 {
 #[test]
 fn hero_wavelength_xyz_estimate_is_unbiased() {
     let r = z_test(&test_spectra(), seed(1), hero_estimate);
-    assert!(r.passes(), "|z| {} (limit {}), sum z^2 {} (limit {})", r.max_abs_z, r.threshold, r.sum_z2, r.chi2_limit);
+    assert!(r.passes(), "|z| {} (limit {})", r.max_abs_z, r.threshold);
 }
 
 #[test]
@@ -324,7 +320,7 @@ fn hero_only_after_terminate_secondary_is_unbiased() {
         to_xyz(s.sample(&lambda), &lambda)
     };
     let r = z_test(&test_spectra(), seed(4), estimate);
-    assert!(r.passes(), "|z| {} (limit {}), sum z^2 {} (limit {})", r.max_abs_z, r.threshold, r.sum_z2, r.chi2_limit);
+    assert!(r.passes(), "|z| {} (limit {})", r.max_abs_z, r.threshold);
     // Negative control: forgetting the factor 4 of the hero's pdf.
     let forgot = |s: &Spectrum, u: f32| {
         let mut lambda = SampledWavelengths::sample_visible(u);
