@@ -176,13 +176,11 @@ impl Camera {
     pub fn raster_of_direction(&self, v: DVec3) -> Option<Vec2> {
         let r = self.project_f64(v)?;
         let inside = (0.0..self.width as f64).contains(&r.x) && (0.0..self.height as f64).contains(&r.y);
+        // Inside, 0 <= x < its f32 f where that rounded up, so f is positive
+        // and finite and one ulp below it is its bits minus one.
         let down = |x: f64| {
             let f = x as f32;
-            if f as f64 > x {
-                f.next_down()
-            } else {
-                f
-            }
+            f32::from_bits(f.to_bits() - (f as f64 > x) as u32)
         };
         inside.then(|| Vec2::new(down(r.x), down(r.y)))
     }
