@@ -49,7 +49,12 @@ enum Command {
         parts: Vec<PathBuf>,
     },
     /// Compare an image with a reference: relMSE, MSE, mean absolute error.
-    Compare { image: PathBuf, reference: PathBuf },
+    Compare {
+        /// The image (EXR).
+        image: PathBuf,
+        /// The reference it is measured against (EXR, the same size).
+        reference: PathBuf,
+    },
     /// Progressive renders against a reference: relMSE vs time and spp per
     /// integrator, charts, efficiency table and report (docs/results.md).
     Converge(prism::converge::ConvergeArgs),
@@ -61,6 +66,8 @@ enum Command {
         /// floats).
         #[arg(long, default_value_t = 32, value_parser = clap::value_parser!(u16).range(3..=256))]
         res: u16,
+        /// Where the table is written (a .bin file; prism's own is
+        /// src/spectrum/data/rgb_to_spectrum_srgb.bin).
         #[arg(long)]
         out: PathBuf,
     },
@@ -427,7 +434,7 @@ fn set_up(a: &RenderArgs) -> Result<Setup> {
     }
     // 2^exposure must be a normal f32: 0 or infinity would write a black PNG.
     if !2f32.powf(a.exposure).is_normal() {
-        bail!("--exposure must be a number of stops in [-126, 127], got {}", a.exposure);
+        bail!("--exposure must be a number of stops in [-126, 128), got {}", a.exposure);
     }
     check_threads(a.threads)?;
     let seed = a.seed.or(defaults.seed).unwrap_or(0);

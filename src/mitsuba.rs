@@ -62,10 +62,13 @@ pub struct ExportMitsubaArgs {
     pub scene: PathBuf,
     /// Output directory (created if missing): scene.xml and meshes/*.ply.
     pub dir: PathBuf,
+    /// Image width (with --height; default: the scene's).
     #[arg(long)]
     pub width: Option<u32>,
+    /// Image height (with --width; default: the scene's).
     #[arg(long)]
     pub height: Option<u32>,
+    /// Samples per pixel: the default of the scene's `$spp` (Mitsuba's -D spp=N overrides it).
     #[arg(long, default_value_t = 64)]
     pub spp: u32,
 }

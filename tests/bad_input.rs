@@ -682,7 +682,7 @@ const CASES: &[Case] = &[
         args: &["--exposure=nan", "--png", "{dir}/preview.png"],
         out: "out.exr",
         position: "",
-        words: &["--exposure must be a number of stops in [-126, 127], got NaN"],
+        words: &["--exposure must be a number of stops in [-126, 128), got NaN"],
     },
     Case {
         // The exposure is the PNG preview's: without one it was ignored.
@@ -699,7 +699,7 @@ const CASES: &[Case] = &[
         args: &["--exposure", "130", "--png", "{dir}/preview.png"],
         out: "out.exr",
         position: "",
-        words: &["--exposure must be a number of stops in [-126, 127], got 130"],
+        words: &["--exposure must be a number of stops in [-126, 128), got 130"],
     },
     Case {
         id: "sidecar-is-a-directory",

@@ -480,6 +480,14 @@ fn unsupported_features_are_named_errors() {
     emission["values"] = json!([0.0, 8.0, 15.6, 1e15]);
     let e = parse(&v, "cornell-box (measured emission 1e15)").err().unwrap();
     assert!(e.contains("materials[3] \"light\": the emitted radiance must be at most 3.5184372e13"), "{e}");
+    // Wavelengths are nanometres above 0, as in the JSON format (a docs
+    // audit, session 60: the extras took 0 and below).
+    let mut v = read_json(&dir().join("cornell-box.gltf"));
+    let emission = &mut v["materials"][3]["extras"]["prism"]["emission"];
+    let n = emission["wavelengths"].as_array().unwrap().len();
+    emission["wavelengths"] = json!((0..n).map(|i| i as f64 * 100.0 - 50.0).collect::<Vec<_>>());
+    let e = parse(&v, "cornell-box (emission from -50 nm)").err().unwrap();
+    assert!(e.contains("\"wavelengths\" are in nanometres, all above 0"), "{e}");
 
     // An accessor's byteOffset near 2^64 does not wrap its end round to
     // the view's start (the indices were read as absent: sequential).

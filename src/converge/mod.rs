@@ -139,7 +139,8 @@ pub struct ConvergeArgs {
     /// Where a reference rendered here is written (default DIR/reference.exr).
     #[arg(long)]
     pub reference_out: Option<PathBuf>,
-    /// Time budget per integrator, in seconds of `--clock`.
+    /// Time budget per integrator, in seconds of `--clock`. A run needs a
+    /// budget: --time, --spp, or both.
     #[arg(long, allow_negative_numbers = true)]
     pub time: Option<f64>,
     /// What seconds are: `wall` (elapsed) or `cpu` (CPU time of all render
@@ -171,7 +172,8 @@ pub struct ConvergeArgs {
     /// PNG exposure in stops (default: automatic, from the reference).
     #[arg(long, allow_negative_numbers = true)]
     pub exposure: Option<f32>,
-    /// Also write each final image as DIR/<label>.exr.
+    /// Also write each final image as DIR/<label>.exr (':' in a label
+    /// written as '-': bdpt-uniform.exr).
     #[arg(long)]
     pub save_exr: bool,
     /// No progress bars.
@@ -641,7 +643,7 @@ fn check_config(cfg: &ConvergeConfig) -> Result<()> {
     // 2^exposure must be a normal f32: 0 or infinity would make black panels.
     ensure!(
         cfg.exposure.is_none_or(|e| 2f32.powf(e).is_normal()),
-        "--exposure must be a number of stops in [-126, 127]"
+        "--exposure must be a number of stops in [-126, 128)"
     );
     if let ReferenceSource::Render { integrator, spp, passes, out } = &cfg.reference {
         ensure_exr("--reference-out", out)?;

@@ -1128,6 +1128,9 @@ fn tabulated(v: &serde_json::Value, max: Option<f32>) -> Result<Spectrum, String
     if w.iter().chain(&vals).any(|x| !x.is_finite()) || w.windows(2).any(|p| p[1] <= p[0]) {
         return Err("numbers must be finite and the wavelengths strictly increasing".into());
     }
+    if w[0] <= 0.0 {
+        return Err("\"wavelengths\" are in nanometres, all above 0".into());
+    }
     if vals.iter().any(|&x| x < 0.0 || max.is_some_and(|m| x > m)) {
         return Err(format!("values must lie in [0, {}]", max.map_or("inf".to_string(), |m| m.to_string())));
     }
