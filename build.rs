@@ -27,7 +27,8 @@ fn main() {
     }
 }
 
-/// Cargo reads `.cargo/config.toml` from the directory it runs in, so
+/// Cargo reads `.cargo/config.toml` from the directory it runs in and its
+/// parents, so
 /// `cargo build --manifest-path .../Cargo.toml` from elsewhere (or a
 /// RUSTFLAGS that replaces the file's flags) builds for baseline x86-64:
 /// `light` ran 33 % more instructions so (session 60), and its images are
@@ -40,7 +41,7 @@ fn warn_without_x86_64_v3() {
         println!(
             "cargo:warning=prism is being built without AVX2/FMA (x86-64-v3): .cargo/config.toml was not read \
              (cargo reads it from the directory it runs in) or RUSTFLAGS replaced it; expect a slower binary \
-             whose images differ in rounding from the x86-64-v3 build's"
+             whose images differ in rounding from the x86-64-v3 build's (intended on a CPU without AVX2)"
         );
     }
 }

@@ -51,7 +51,7 @@ fn white_room_reference(dir: &Path, res: u32) -> PathBuf {
 /// The white room's exact image times `scale` (1: `white_room_reference`).
 fn white_room_image(dir: &Path, res: u32, scale: f64) -> PathBuf {
     let v = scenes::srgb_of(&Spectrum::Constant(2.5)).map(|c| (c * scale) as f32);
-    let path = dir.join(format!("exact-x{scale}.exr"));
+    let path = dir.join(format!("white-room-x{scale}.exr"));
     write_exr(&path, res, res, &vec![v; (res * res) as usize]).unwrap();
     path
 }
@@ -150,12 +150,14 @@ fn small_run_writes_every_output_and_the_csv_parses() {
 }
 
 /// relMSE against the exact white-room image is pure variance, so it falls
-/// as 1/spp: the fitted log-log slope over 4-4096 spp must be close to -1.
-/// Control: against the exact image x1.02, a 2 % bias, whose relMSE floor
-/// (~4e-4, against 1.8e-4 of variance at 4096 spp) flattens the slope out
-/// of the window. Over 30 seeds the slopes were -1.001 +- 0.017 (range
-/// -1.038 to -0.968) and with the bias -0.853 +- 0.017 (-0.896 to -0.816),
-/// so the window's edges are ~4.7 and ~4 standard deviations from each.
+/// as 1/spp: the fitted log-log slope over 4-4096 spp, the mean of two
+/// seeds', must be close to -1. Control: against the exact image x1.02, a
+/// 2 % bias, whose relMSE floor (~4e-4, against 1.8e-4 of variance at
+/// 4096 spp) flattens the slope out of the window. Over 30 seeds one
+/// seed's slope was -1.001 +- 0.017 (range -1.038 to -0.968) and with the
+/// bias -0.853 +- 0.017 (-0.896 to -0.816); a mean of two has a standard
+/// deviation of ~0.012, so the window's edges are ~6.5 and ~5.6 of them
+/// from the two.
 /// (Until session 60 it was -1.25 to -0.8 at 256 spp, where a 2 % or a 5 %
 /// bias gave -0.96 and -0.84 and passed: a test audit.)
 #[test]
@@ -174,13 +176,17 @@ fn rel_mse_falls_as_one_over_spp_in_the_white_room() {
     };
     let (exact, biased) = (white_room_reference(&d, res), white_room_image(&d, res, 1.02));
     const WINDOW: std::ops::RangeInclusive<f64> = -1.08..=-0.92;
-    for seed in [scenes::seed(11), scenes::seed(12)] {
-        let (slope, fall) = fit(&exact, seed);
-        assert!(WINDOW.contains(&slope), "seed {seed}: slope {slope}");
-        assert!(fall > 1000.0, "relMSE fell only {fall}x");
-        let (slope, _) = fit(&biased, seed);
-        assert!(!WINDOW.contains(&slope), "seed {seed}: against a 2 % bias the slope is still {slope}");
-    }
+    let seeds = [scenes::seed(11), scenes::seed(12)];
+    // The mean slope over the seeds, and the least fall of relMSE.
+    let fits = |reference: &PathBuf| {
+        let f = seeds.map(|seed| fit(reference, seed));
+        ((f[0].0 + f[1].0) / 2.0, f[0].1.min(f[1].1))
+    };
+    let (slope, fall) = fits(&exact);
+    assert!(WINDOW.contains(&slope), "slope {slope}");
+    assert!(fall > 1000.0, "relMSE fell only {fall}x");
+    let (slope, _) = fits(&biased);
+    assert!(!WINDOW.contains(&slope), "against a 2 % bias the slope is still {slope}");
     std::fs::remove_dir_all(&d).unwrap();
 }
 

@@ -172,8 +172,9 @@ pub struct ConvergeArgs {
     /// PNG exposure in stops (default: automatic, from the reference).
     #[arg(long, allow_negative_numbers = true)]
     pub exposure: Option<f32>,
-    /// Also write each final image as DIR/<label>.exr (':' in a label
-    /// written as '-': bdpt-uniform.exr).
+    /// Also write each final image as DIR/<label>.exr (a label's characters
+    /// other than letters, digits, '_' and '-' written as '-':
+    /// bdpt-uniform.exr).
     #[arg(long)]
     pub save_exr: bool,
     /// No progress bars.
