@@ -100,14 +100,14 @@ impl Camera {
         if pixels == 0 {
             return Err("width and height must be at least 1".to_string());
         }
-        if width.max(height) > MAX_SIDE {
-            return Err(format!(
-                "{width} x {height}: a side of more than {MAX_SIDE} (2^24) pixels has pixels f32 raster positions cannot reach"
-            ));
-        }
         if pixels > MAX_PIXELS {
             return Err(format!(
                 "{width} x {height} = {pixels} pixels is more than the {MAX_PIXELS} (2^27, e.g. 16384 x 8192) a film holds"
+            ));
+        }
+        if width.max(height) > MAX_SIDE {
+            return Err(format!(
+                "{width} x {height}: a side of more than {MAX_SIDE} (2^24) pixels has pixels f32 raster positions cannot reach"
             ));
         }
         Ok(())
