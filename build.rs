@@ -28,11 +28,11 @@ fn main() {
 }
 
 /// Cargo reads `.cargo/config.toml` from the directory it runs in and its
-/// parents, so
-/// `cargo build --manifest-path .../Cargo.toml` from elsewhere (or a
-/// RUSTFLAGS that replaces the file's flags) builds for baseline x86-64:
-/// `light` ran 33 % more instructions so (session 60), and its images are
-/// not the x86-64-v3 build's bit for bit (the sidecar's `build_target`).
+/// parents, so `cargo build --manifest-path .../Cargo.toml` run from
+/// elsewhere (or a RUSTFLAGS that replaces the file's flags) builds for
+/// baseline x86-64: `light` ran 33 % more instructions so (session 60),
+/// and its images are not the x86-64-v3 build's bit for bit (the
+/// sidecar's `build_target`).
 fn warn_without_x86_64_v3() {
     let arch = std::env::var("CARGO_CFG_TARGET_ARCH").unwrap_or_default();
     let features = std::env::var("CARGO_CFG_TARGET_FEATURE").unwrap_or_default();

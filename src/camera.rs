@@ -274,10 +274,7 @@ mod tests {
         }
     }
 
-    /// `f32_at_or_below` at the values a raster position takes: 0, an
-    /// integer, just below an integer at every magnitude up to 2^24, and
-    /// just below the largest side; each result is at or below x and the
-    /// next f32 up is above it.
+    /// A side of 2^24 pixels is accepted, one more refused.
     #[test]
     fn a_side_is_at_most_2_to_the_24() {
         assert!(Camera::check_resolution(MAX_SIDE, 8).is_ok());
@@ -285,6 +282,10 @@ mod tests {
         assert!(e.contains("a side of more than 16777216 (2^24) pixels"), "{e}");
     }
 
+    /// `f32_at_or_below` at the values a raster position takes: 0, an
+    /// integer, just below an integer at every magnitude up to 2^24, and
+    /// just below the largest side; each result is at or below x and the
+    /// next f32 up is above it.
     #[test]
     fn rounding_down_is_the_largest_f32_at_or_below() {
         let mut xs = vec![0.0, 1.0, 8192.0, (MAX_SIDE - 1) as f64, MAX_SIDE as f64 - 1e-9];
